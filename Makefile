@@ -1,0 +1,35 @@
+# ChefBot workspace. Every target runs `setup` first (idempotent, seconds when
+# there is nothing to do). See README.md.
+SHELL := /bin/bash
+WITH_ENV := bash tools/with_env.sh
+
+.PHONY: setup test demo bench shell lint clean help
+
+help:
+	@echo "make demo   - install what is missing, build, run the simulated delivery demo (headless without a display)"
+	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
+	@echo "make bench  - benchmarks (ratios side by side, JSON in bench-results/)"
+	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
+	@echo "make setup  - only install and build"
+	@echo "make lint   - ruff over the Python code"
+
+setup:
+	@bash tools/setup.sh
+
+test: setup
+	@$(WITH_ENV) python tools/run_tests.py
+
+demo: setup
+	@$(WITH_ENV) python tools/demo.py
+
+bench: setup
+	@$(WITH_ENV) python tools/bench.py
+
+lint: setup
+	@$(WITH_ENV) ruff check .
+
+shell: setup
+	@bash --rcfile <(echo '[ -f ~/.bashrc ] && source ~/.bashrc; source tools/env.sh; PS1="(chefbot) $$PS1"') -i
+
+clean:
+	rm -rf build devel install CMakeLists.txt

@@ -1,0 +1,1 @@
+"""ChefBot robot model: URDF/xacro, simulation parameters, RViz configs and model launch files."""

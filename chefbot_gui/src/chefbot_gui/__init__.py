@@ -1,0 +1,1 @@
+"""PyQt5 table-delivery GUI, an action client of move_base."""

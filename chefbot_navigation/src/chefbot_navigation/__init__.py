@@ -1,0 +1,1 @@
+"""Map server and saver, SLAM, localization and a move_base-compatible action server."""

@@ -1,0 +1,317 @@
+#!/usr/bin/env python3
+"""Run every test of the workspace and print one closing line of totals.
+
+Runners, in order:
+  1. pytest over every ``*/test/unit`` directory and ``tests/unit`` (no master);
+  2. ``make -C firmware test`` and a bounded fuzz run, when the firmware has them;
+  3. every rostest file (``*/test/*.test`` and ``tests/*.test``), one at a time,
+     each with its own master on a free port (rostest's default), in its own
+     process group that is killed afterwards.
+
+Every child gets the environment variable CHEFBOT_TEST_RUN=<token>; at the end
+any process still carrying it is reported as a leak, killed, and counted as a
+failure.  The last line printed is ``N passed, M failed, K skipped``; the exit
+code is non-zero when anything failed or nothing ran.
+
+Usage (inside the workspace environment, see tools/env.sh):
+    python tools/run_tests.py [--only unit|firmware|rostest] [-k PATTERN]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import uuid
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "build" / "test_results"
+ROSTEST_TIMEOUT_S = float(os.environ.get("CHEFBOT_ROSTEST_TIMEOUT", "600"))
+FUZZ_SECONDS = os.environ.get("FUZZ_SECONDS", "60")
+SKIP_DIRS = {".git", ".venv", "build", "devel", "install", "node_modules"}
+
+
+@dataclass
+class Totals:
+    passed: int = 0
+    failed: int = 0
+    skipped: int = 0
+    failures: list[str] = field(default_factory=list)
+
+    def add(self, other: "Totals") -> None:
+        self.passed += other.passed
+        self.failed += other.failed
+        self.skipped += other.skipped
+        self.failures += other.failures
+
+
+def log(msg: str) -> None:
+    print(f"[test] {msg}", flush=True)
+
+
+def junit_totals(path: Path, label: str) -> Totals:
+    """Count test cases in a JUnit XML file (pytest's and rostest's)."""
+    t = Totals()
+    root = ET.parse(path).getroot()
+    for case in root.iter("testcase"):
+        name = f"{label}::{case.get('classname', '')}.{case.get('name', '')}"
+        if case.find("failure") is not None or case.find("error") is not None:
+            t.failed += 1
+            t.failures.append(name)
+        elif case.find("skipped") is not None:
+            t.skipped += 1
+        else:
+            t.passed += 1
+    # rostest reports a crashed/missing test node as a suite-level error with no case
+    if t.passed + t.failed + t.skipped == 0:
+        errors = sum(int(s.get("errors", 0)) + int(s.get("failures", 0)) for s in root.iter("testsuite"))
+        if errors or root.get("errors", "0") not in ("0", None):
+            t.failed += 1
+            t.failures.append(f"{label}: suite error without test cases")
+    return t
+
+
+def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Path = ROOT) -> tuple[int, bool]:
+    """Run cmd in a new session; stream output to log_path; kill the whole group afterwards.
+
+    Returns (returncode, timed_out).
+    """
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(log_path, "wb") as out:
+        proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True)
+        timed_out = False
+        try:
+            rc = proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+            rc = -1
+        except KeyboardInterrupt:
+            kill_group(proc.pid)
+            raise
+        kill_group(proc.pid)
+        if timed_out:
+            proc.wait()
+    return rc, timed_out
+
+
+def kill_group(pgid: int) -> None:
+    """SIGINT (lets roslaunch shut its children down), then SIGTERM, then SIGKILL."""
+    for sig, grace in ((signal.SIGINT, 5.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 0.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(pgid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.1)
+
+
+def tail(path: Path, n: int = 30) -> str:
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError:
+        return ""
+    return "\n".join("    " + line for line in lines[-n:])
+
+
+# ----------------------------------------------------------------- discovery
+def package_dirs() -> list[Path]:
+    return sorted(p.parent for p in ROOT.glob("*/package.xml"))
+
+
+def unit_dirs() -> list[Path]:
+    return [d for d in sorted(ROOT.glob("*/test/unit")) + [ROOT / "tests" / "unit"] if d.is_dir()]
+
+
+def rostest_files() -> list[tuple[str, Path]]:
+    found = []
+    for pkg_dir in package_dirs():
+        pkg = pkg_dir.name
+        from xml.etree import ElementTree
+        name = ElementTree.parse(pkg_dir / "package.xml").getroot().findtext("name") or pkg
+        for test in sorted(pkg_dir.glob("test/*.test")) + sorted(pkg_dir.glob("test/rostest/*.test")):
+            found.append((name, test))
+    return found
+
+
+# ----------------------------------------------------------------- runners
+def run_pytest(env: dict, pattern: str | None) -> Totals:
+    dirs = unit_dirs()
+    if not dirs:
+        log("pytest: no unit test directories")
+        return Totals()
+    xml = RESULTS / "pytest.xml"
+    if xml.exists():
+        xml.unlink()
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
+           f"--junitxml={xml}", "-o", "junit_family=xunit2", *[str(d) for d in dirs]]
+    if pattern:
+        cmd += ["-k", pattern]
+    log(f"pytest over {len(dirs)} directories")
+    env = dict(env, QT_QPA_PLATFORM="offscreen")
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, start_new_session=True)
+    if not xml.exists():
+        return Totals(failed=1, failures=[f"pytest crashed (exit {proc.returncode}) before writing results"])
+    return junit_totals(xml, "pytest")
+
+
+_COUNT_LINE = re.compile(r"(\d+) passed, (\d+) failed(?:, (\d+) skipped)?\s*$")
+
+
+def run_firmware(env: dict) -> Totals:
+    fw = ROOT / "firmware"
+    t = Totals()
+    if not (fw / "Makefile").exists():
+        log("firmware: no Makefile yet, skipped")
+        return t
+    log("firmware: host unit tests")
+    logf = RESULTS / "firmware_test.log"
+    rc, to = run_group(["make", "-s", "-C", str(fw), "test"], env, 900, logf)
+    counts = None
+    for line in logf.read_text(errors="replace").splitlines():
+        m = _COUNT_LINE.search(line)
+        if m:
+            counts = m
+    if counts:
+        t.passed += int(counts.group(1))
+        t.failed += int(counts.group(2))
+        t.skipped += int(counts.group(3) or 0)
+        if int(counts.group(2)):
+            t.failures.append("firmware unit tests")
+    if rc != 0 and not t.failed:
+        t.failed += 1
+        t.failures.append(f"firmware: make test exit {rc}{' (timeout)' if to else ''}")
+    if rc != 0 or t.failed:
+        print(tail(logf), flush=True)
+    log(f"firmware: {t.passed} passed, {t.failed} failed")
+
+    if os.environ.get("CHEFBOT_SKIP_FUZZ") == "1":
+        log("firmware: fuzz skipped (CHEFBOT_SKIP_FUZZ=1)")
+        t.skipped += 1
+        return t
+    log(f"firmware: fuzz for {FUZZ_SECONDS} s")
+    logf = RESULTS / "firmware_fuzz.log"
+    rc, to = run_group(["make", "-s", "-C", str(fw), "fuzz", f"FUZZ_SECONDS={FUZZ_SECONDS}"], env,
+                       float(FUZZ_SECONDS) * 4 + 300, logf)
+    if rc == 0:
+        t.passed += 1
+    else:
+        t.failed += 1
+        t.failures.append(f"firmware fuzz exit {rc}{' (timeout)' if to else ''}: see {logf}")
+        print(tail(logf), flush=True)
+    return t
+
+
+def run_rostests(env: dict, pattern: str | None) -> Totals:
+    total = Totals()
+    tests = rostest_files()
+    if pattern:
+        tests = [(p, f) for p, f in tests if pattern in str(f)]
+    for pkg, test in tests:
+        rel = test.relative_to(ROOT)
+        name = f"{pkg}/{test.stem}"
+        xml = RESULTS / "rostest" / f"{pkg}-{test.stem}.xml"
+        if xml.exists():
+            xml.unlink()
+        logf = RESULTS / "rostest" / f"{pkg}-{test.stem}.log"
+        t0 = time.monotonic()
+        # rostest starts its own master on a free port unless --reuse-master.
+        cmd = ["rostest", "--results-filename", xml.name, "--results-base-dir", str(xml.parent.parent),
+               pkg, str(test)]
+        rc, to = run_group(cmd, env, ROSTEST_TIMEOUT_S, logf)
+        # rostest puts the file in <base>/<pkg>/<name>
+        produced = RESULTS / pkg / xml.name
+        if produced.exists():
+            produced.replace(xml)
+        t = junit_totals(xml, name) if xml.exists() else Totals()
+        if to:
+            t.failed += 1
+            t.failures.append(f"{name}: timed out after {ROSTEST_TIMEOUT_S:.0f} s")
+        elif rc != 0 and not t.failed:
+            t.failed += 1
+            t.failures.append(f"{name}: rostest exit {rc}")
+        if t.passed + t.failed == 0:
+            t.failed += 1
+            t.failures.append(f"{name}: no test result")
+        log(f"rostest {rel}: {t.passed} passed, {t.failed} failed ({time.monotonic() - t0:.1f} s)")
+        if t.failed:
+            print(tail(logf), flush=True)
+        total.add(t)
+    return total
+
+
+# ----------------------------------------------------------------- leak check
+def leaked(token: str) -> list[tuple[int, str]]:
+    me = os.getpid()
+    out = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit() or int(proc.name) == me:
+            continue
+        try:
+            environ = (proc / "environ").read_bytes()
+            if f"CHEFBOT_TEST_RUN={token}".encode() not in environ.split(b"\0"):
+                continue
+            cmdline = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        out.append((int(proc.name), cmdline.strip()))
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", choices=["unit", "firmware", "rostest"], action="append")
+    ap.add_argument("-k", dest="pattern", help="select tests (pytest -k; substring of the .test path)")
+    args = ap.parse_args()
+    only = set(args.only or ["unit", "firmware", "rostest"])
+
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    token = uuid.uuid4().hex
+    env = dict(os.environ, CHEFBOT_TEST_RUN=token, PYTHONDONTWRITEBYTECODE="1",
+               ROS_HOME=str(RESULTS / "ros_home"), ROS_LOG_DIR=str(RESULTS / "ros_log"))
+    env.pop("ROS_MASTER_URI", None)  # every runner brings its own master
+
+    t0 = time.monotonic()
+    total = Totals()
+    if "unit" in only:
+        total.add(run_pytest(env, args.pattern))
+    if "firmware" in only and not args.pattern:
+        total.add(run_firmware(env))
+    if "rostest" in only:
+        total.add(run_rostests(env, args.pattern))
+
+    time.sleep(0.5)
+    strays = leaked(token)
+    if strays:
+        total.failed += 1
+        total.failures.append(f"{len(strays)} process(es) outlived their test")
+        for pid, cmd in strays:
+            log(f"LEAK pid {pid}: {cmd[:160]}")
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    log(f"finished in {time.monotonic() - t0:.0f} s; results in {RESULTS.relative_to(ROOT)}")
+    for f in total.failures:
+        log(f"FAILED {f}")
+    line = f"{total.passed} passed, {total.failed} failed"
+    if total.skipped:
+        line += f", {total.skipped} skipped"
+    print(line, flush=True)
+    return 1 if total.failed or total.passed == 0 else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
