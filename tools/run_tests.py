@@ -30,6 +30,9 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from procs import kill_group  # noqa: E402
+
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "build" / "test_results"
 ROSTEST_TIMEOUT_S = float(os.environ.get("CHEFBOT_ROSTEST_TIMEOUT", "600"))
@@ -101,22 +104,6 @@ def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Pa
     return rc, timed_out
 
 
-def kill_group(pgid: int) -> None:
-    """SIGINT (lets roslaunch shut its children down), then SIGTERM, then SIGKILL."""
-    for sig, grace in ((signal.SIGINT, 5.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 0.0)):
-        try:
-            os.killpg(pgid, sig)
-        except ProcessLookupError:
-            return
-        deadline = time.monotonic() + grace
-        while time.monotonic() < deadline:
-            try:
-                os.killpg(pgid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.1)
-
-
 def tail(path: Path, n: int = 30) -> str:
     try:
         lines = path.read_text(errors="replace").splitlines()
@@ -138,8 +125,7 @@ def rostest_files() -> list[tuple[str, Path]]:
     found = []
     for pkg_dir in package_dirs():
         pkg = pkg_dir.name
-        from xml.etree import ElementTree
-        name = ElementTree.parse(pkg_dir / "package.xml").getroot().findtext("name") or pkg
+        name = ET.parse(pkg_dir / "package.xml").getroot().findtext("name") or pkg
         for test in sorted(pkg_dir.glob("test/*.test")) + sorted(pkg_dir.glob("test/rostest/*.test")):
             found.append((name, test))
     return found

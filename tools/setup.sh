@@ -75,4 +75,9 @@ if [ "$(cat "$STAMPS/catkin" 2>/dev/null || true)" != "$src_hash" ] || [ ! -f de
 else
     say "catkin workspace up to date"
 fi
+# ---------------------------------------------------------------- 4. firmware host library
+# The simulator and the driver tests load it with ctypes (incremental, quiet).
+if [ -f firmware/Makefile ]; then
+    make -s -C firmware lib || { echo "[setup] ERROR: building the firmware host library failed" >&2; exit 1; }
+fi
 say "ready — 'source tools/env.sh' for manual roslaunch/rosrun"

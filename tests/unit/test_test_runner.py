@@ -1,0 +1,89 @@
+"""The test runner's own logic: counting, parsing, leak detection, process-group shutdown."""
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(f"chefbot_tools_{name}", ROOT / "tools" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up there
+    spec.loader.exec_module(mod)
+    return mod
+
+
+run_tests = _load("run_tests")
+procs = _load("procs")
+
+
+def test_junit_counts_pass_fail_skip(tmp_path: Path) -> None:
+    xml = tmp_path / "r.xml"
+    xml.write_text(
+        '<testsuites><testsuite name="s" tests="4">'
+        '<testcase classname="a" name="ok"/>'
+        '<testcase classname="a" name="bad"><failure message="x"/></testcase>'
+        '<testcase classname="a" name="err"><error message="y"/></testcase>'
+        '<testcase classname="a" name="sk"><skipped/></testcase>'
+        "</testsuite></testsuites>")
+    t = run_tests.junit_totals(xml, "lbl")
+    assert (t.passed, t.failed, t.skipped) == (1, 2, 1)
+    assert "lbl::a.bad" in t.failures and "lbl::a.err" in t.failures
+
+
+def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:
+    # rostest writes this when the test node never came up
+    xml = tmp_path / "r.xml"
+    xml.write_text('<testsuite name="s" tests="1" errors="1" failures="0"></testsuite>')
+    t = run_tests.junit_totals(xml, "lbl")
+    assert t.failed == 1 and t.passed == 0
+
+
+def test_count_line_pattern() -> None:
+    m = run_tests._COUNT_LINE.search("firmware: 12 passed, 3 failed, 1 skipped")
+    assert m and m.groups() == ("12", "3", "1")
+    m = run_tests._COUNT_LINE.search("40 passed, 0 failed")
+    assert m and m.groups() == ("40", "0", None)
+    assert run_tests._COUNT_LINE.search("passed and failed") is None
+
+
+def test_leak_detection_finds_and_misses_by_token() -> None:
+    token = "leaktest" + str(os.getpid())
+    env = dict(os.environ, CHEFBOT_TEST_RUN=token)
+    p = subprocess.Popen(["sleep", "30"], env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 5
+        found = []
+        while time.monotonic() < deadline and not found:
+            found = [pid for pid, _ in run_tests.leaked(token)]
+            time.sleep(0.05)
+        assert p.pid in found
+        assert p.pid not in [pid for pid, _ in run_tests.leaked("some-other-token")]
+    finally:
+        procs.kill_group(p.pid)
+        p.wait(timeout=5)
+    assert run_tests.leaked(token) == []
+
+
+def test_kill_group_stops_children_that_ignore_sigint() -> None:
+    # a parent that ignores SIGINT with a child: both must be gone afterwards
+    script = "trap '' INT; sleep 60 & wait"
+    p = subprocess.Popen(["bash", "-c", script], start_new_session=True)
+    time.sleep(0.2)  # let bash install the trap; the assertion below does not depend on timing
+    procs.kill_group(p.pid, grace_int=0.5, grace_term=0.5)
+    p.wait(timeout=5)
+    assert not procs.group_alive(p.pid)
+
+
+def test_free_port_is_bindable() -> None:
+    import socket
+    port = procs.free_port()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", port))
