@@ -1,0 +1,209 @@
+"""Differential-drive dead reckoning from wheel encoder ticks (core of ``diff_tf``).
+
+Conventions (REP 103): x forward, y left, +theta counter-clockwise seen from
+above; the left wheel sits at +y = base_width / 2, the right wheel at -y.
+
+Kinematics (the book's chapter 2, equations 10-15, written from the
+semantics): for wheel travel ``dl``, ``dr`` (m) over one update
+
+    d      = (dl + dr) / 2           distance of the base centre (m)
+    dtheta = (dr - dl) / b           heading change (rad), b = base_width
+
+If ``dtheta`` is (numerically) zero the base moved on a straight line;
+otherwise it moved on a circle of signed radius R = d / dtheta about the
+instantaneous centre of curvature ICC = (x - R sin(theta), y + R cos(theta)):
+
+    x' = x + R (sin(theta + dtheta) - sin(theta))
+    y' = y - R (cos(theta + dtheta) - cos(theta))
+    theta' = theta + dtheta
+
+The book's ``diff_tf`` moved the base along the chord with the heading at
+the *start* of the step, i.e. with the wrong sign of the arc's lateral
+offset; the exact arc above has no such error for any step length.
+
+Pose covariance is propagated with the usual linearised model: each wheel's
+travel has variance ``k * |travel|`` (m^2, k = ``wheel_slip_var`` in m^2/m), so
+the uncertainty grows with distance driven, never while standing still.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from chefbot_bringup.encoder import EncoderRange, TickUnwrapper
+
+# Variance reported for the pose/twist components a planar robot cannot
+# observe (z, roll, pitch): large so that filters ignore them.
+UNOBSERVED_VAR = 1e6
+
+
+def wrap_angle(a: float) -> float:
+    """Wrap an angle to [-pi, pi) (rad)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def integrate_arc(x: float, y: float, theta: float, dl: float, dr: float,
+                  base_width: float) -> tuple[float, float, float]:
+    """Move the pose (m, m, rad) by wheel travels ``dl``, ``dr`` (m) on the exact arc."""
+    d = 0.5 * (dl + dr)
+    dtheta = (dr - dl) / base_width
+    if abs(dtheta) < 1e-9:
+        return x + d * math.cos(theta), y + d * math.sin(theta), theta
+    r = d / dtheta
+    th1 = theta + dtheta
+    return x + r * (math.sin(th1) - math.sin(theta)), y - r * (math.cos(th1) - math.cos(theta)), th1
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Parameters of the dead-reckoning core."""
+
+    ticks_meter: float = 14854.0      # encoder ticks per metre of wheel travel (ticks/m)
+    base_width: float = 0.30          # distance between the wheel contact points (m)
+    encoder: EncoderRange = field(default_factory=EncoderRange)
+    max_wheel_speed: float = 0.377    # fastest physically possible wheel speed (m/s)
+    wheel_slip_var: float = 1e-4      # wheel-travel variance per metre travelled (m^2/m)
+    min_pose_var: float = 1e-6        # floor on x/y/yaw variance (m^2, rad^2)
+    twist_linear_var: float = 1e-3    # variance of the reported linear speed ((m/s)^2)
+    twist_angular_var: float = 1e-2   # variance of the reported yaw rate ((rad/s)^2)
+
+    def __post_init__(self) -> None:
+        for name in ("ticks_meter", "base_width", "max_wheel_speed"):
+            if not (getattr(self, name) > 0 and math.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} must be a positive finite number, got {getattr(self, name)!r}")
+        for name in ("wheel_slip_var", "min_pose_var", "twist_linear_var", "twist_angular_var"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+
+@dataclass
+class OdometryState:
+    """One odometry estimate: pose (m, m, rad), twist (m/s, rad/s), covariances."""
+
+    t: float
+    x: float
+    y: float
+    theta: float
+    v: float
+    w: float
+    pose_cov: np.ndarray    # 6x6, order x y z roll pitch yaw (nav_msgs convention)
+    twist_cov: np.ndarray   # 6x6
+
+
+class DiffOdometry:
+    """Integrate cumulative wheel ticks into a planar pose.
+
+    Feed the latest raw counters with :meth:`set_ticks` (any rate), then call
+    :meth:`update` at the publishing rate with the current time.  A counter
+    jump that no wheel could have driven (board reset, lost messages during a
+    reconnect) re-baselines instead of teleporting the robot; the number of
+    such events is in :attr:`resets`.
+    """
+
+    def __init__(self, cfg: OdometryConfig) -> None:
+        self.cfg = cfg
+        self._left = TickUnwrapper(cfg.encoder)
+        self._right = TickUnwrapper(cfg.encoder)
+        self._pos_l: int | None = None      # latest unwrapped positions (ticks)
+        self._pos_r: int | None = None
+        self._base_l: int | None = None     # positions at the last integration (ticks)
+        self._base_r: int | None = None
+        self._t_last: float | None = None
+        self._yaw_imu: float | None = None
+        self._yaw_imu_base: float | None = None
+        self.x = self.y = self.theta = 0.0
+        self.v = self.w = 0.0
+        self.resets = 0
+        self._p = np.diag([cfg.min_pose_var] * 3)   # x, y, theta covariance
+
+    def set_ticks(self, left: int | None = None, right: int | None = None) -> None:
+        """Record the latest raw cumulative counters (ticks); ``None`` leaves a wheel unchanged."""
+        if left is not None:
+            self._pos_l = self._left.update(left)
+        if right is not None:
+            self._pos_r = self._right.update(right)
+
+    def set_imu_yaw(self, yaw: float) -> None:
+        """Record the latest IMU yaw (rad); when set, heading changes come from it."""
+        self._yaw_imu = yaw
+
+    def _rebaseline(self) -> None:
+        self._base_l, self._base_r = self._pos_l, self._pos_r
+        self._yaw_imu_base = self._yaw_imu
+
+    def update(self, t: float) -> OdometryState | None:
+        """Integrate the travel since the last call; ``t`` in seconds.
+
+        Returns ``None`` until both wheels have reported once.
+        """
+        if self._pos_l is None or self._pos_r is None:
+            return None
+        if self._base_l is None or self._t_last is None:
+            self._rebaseline()
+            self._t_last = t
+            return self.state(t)
+        dt = t - self._t_last
+        if dt <= 0.0:
+            # Time went backwards (sim time reset) or a duplicate call: re-baseline.
+            self._rebaseline()
+            self._t_last = t
+            return self.state(t)
+        cfg = self.cfg
+        dl = (self._pos_l - self._base_l) / cfg.ticks_meter
+        dr = (self._pos_r - self._base_r) / cfg.ticks_meter
+        # A wheel cannot travel farther than max speed allows (50 % margin plus
+        # a couple of cm for message jitter): anything bigger is a counter
+        # reset or garbage, so take the new counters as the baseline.
+        limit = 1.5 * cfg.max_wheel_speed * dt + 0.02
+        if abs(dl) > limit or abs(dr) > limit:
+            self.resets += 1
+            self._rebaseline()
+            self._t_last = t
+            self.v = self.w = 0.0
+            return self.state(t)
+
+        d = 0.5 * (dl + dr)
+        if self._yaw_imu is not None and self._yaw_imu_base is not None:
+            dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base)
+            # Split the IMU heading change into wheel travels so the arc
+            # formula stays the single source of truth.
+            half = 0.5 * dtheta * cfg.base_width
+            dl_eff, dr_eff = d - half, d + half
+        else:
+            dtheta = (dr - dl) / cfg.base_width
+            dl_eff, dr_eff = dl, dr
+
+        self._propagate_cov(d, dtheta, dl, dr)
+        self.x, self.y, th = integrate_arc(self.x, self.y, self.theta, dl_eff, dr_eff, cfg.base_width)
+        self.theta = wrap_angle(th)
+        self.v = d / dt
+        self.w = dtheta / dt
+        self._rebaseline()
+        self._t_last = t
+        return self.state(t)
+
+    def _propagate_cov(self, d: float, dtheta: float, dl: float, dr: float) -> None:
+        """First-order covariance propagation for one step (midpoint heading)."""
+        cfg = self.cfg
+        m = self.theta + 0.5 * dtheta
+        c, s = math.cos(m), math.sin(m)
+        f = np.array([[1.0, 0.0, -d * s], [0.0, 1.0, d * c], [0.0, 0.0, 1.0]])
+        # Noise in wheel space, mapped to (d, dtheta) then to (x, y, theta).
+        q_wheels = np.diag([cfg.wheel_slip_var * abs(dl), cfg.wheel_slip_var * abs(dr)])
+        b = cfg.base_width
+        j = np.array([[0.5, 0.5], [-1.0 / b, 1.0 / b]])
+        g = np.array([[c, -0.5 * d * s], [s, 0.5 * d * c], [0.0, 1.0]])
+        gj = g @ j
+        self._p = f @ self._p @ f.T + gj @ q_wheels @ gj.T
+
+    def state(self, t: float) -> OdometryState:
+        """Current estimate as an :class:`OdometryState` (covariances as 6x6)."""
+        cfg = self.cfg
+        pose_cov = np.diag([0.0, 0.0, UNOBSERVED_VAR, UNOBSERVED_VAR, UNOBSERVED_VAR, 0.0])
+        idx = [0, 1, 5]
+        pose_cov[np.ix_(idx, idx)] = self._p + np.eye(3) * cfg.min_pose_var
+        twist_cov = np.diag([cfg.twist_linear_var, cfg.twist_linear_var, UNOBSERVED_VAR,
+                             UNOBSERVED_VAR, UNOBSERVED_VAR, cfg.twist_angular_var])
+        return OdometryState(t, self.x, self.y, self.theta, self.v, self.w, pose_cov, twist_cov)

@@ -1,0 +1,139 @@
+"""DiffOdometry: exact arc, signs, wrap, resets, covariance."""
+import math
+
+import numpy as np
+import pytest
+
+from chefbot_bringup.encoder import INT16_RANGE, EncoderRange
+from chefbot_bringup.odometry import DiffOdometry, OdometryConfig, integrate_arc
+
+TPM = 14854.0
+B = 0.30
+
+
+def make(**kw) -> DiffOdometry:
+    return DiffOdometry(OdometryConfig(ticks_meter=TPM, base_width=B, **kw))
+
+
+def drive(odo: DiffOdometry, vl: float, vr: float, seconds: float, rate: float = 10.0,
+          t0: float = 0.0, start=(0, 0)) -> tuple[float, int, int]:
+    """Feed ticks of constant wheel speeds (m/s); returns end time and tick counts."""
+    steps = round(seconds * rate)
+    for k in range(1, steps + 1):
+        t = t0 + k / rate
+        left = start[0] + round(vl * (t - t0) * TPM)
+        right = start[1] + round(vr * (t - t0) * TPM)
+        odo.set_ticks(left, right)
+        odo.update(t)
+    return t0 + steps / rate, left, right
+
+
+def started() -> DiffOdometry:
+    odo = make()
+    odo.set_ticks(0, 0)
+    assert odo.update(0.0) is not None
+    return odo
+
+
+def test_none_until_both_wheels_reported():
+    odo = make()
+    odo.set_ticks(left=5)
+    assert odo.update(0.0) is None
+
+
+def test_straight_line():
+    odo = started()
+    drive(odo, 0.2, 0.2, 2.0)
+    assert odo.x == pytest.approx(0.4, abs=1e-4)
+    assert odo.y == pytest.approx(0.0, abs=1e-9)
+    assert odo.theta == pytest.approx(0.0, abs=1e-9)
+    assert odo.v == pytest.approx(0.2, abs=1e-3)
+
+
+def test_rotation_in_place_is_ccw_when_right_wheel_forward():
+    odo = started()
+    drive(odo, -0.1, 0.1, 1.0)
+    # dtheta = (dr - dl) / b = 0.2 / 0.3 rad
+    assert odo.theta == pytest.approx(0.2 / B, abs=1e-3)
+    assert odo.w > 0
+    assert math.hypot(odo.x, odo.y) < 1e-4
+
+
+def test_left_turn_arc_ends_on_the_circle():
+    # vl = 0.1, vr = 0.2: turning left about an ICC at +y.
+    odo = started()
+    drive(odo, 0.1, 0.2, 3.0, rate=10.0)
+    w = 0.1 / B
+    radius = 0.15 / w
+    th = w * 3.0
+    assert odo.theta == pytest.approx(th, abs=1e-3)
+    assert odo.x == pytest.approx(radius * math.sin(th), abs=1e-3)
+    assert odo.y == pytest.approx(radius * (1 - math.cos(th)), abs=1e-3)
+    assert odo.y > 0
+
+
+def test_arc_is_exact_for_any_step_length():
+    one = integrate_arc(0, 0, 0.3, 0.1, 0.3, B)
+    x, y, th = 0.0, 0.0, 0.3
+    for _ in range(1000):
+        x, y, th = integrate_arc(x, y, th, 0.1e-3, 0.3e-3, B)
+    assert one == pytest.approx((x, y, th), abs=1e-9)
+
+
+def test_int16_wrap_is_continuous():
+    odo = DiffOdometry(OdometryConfig(ticks_meter=TPM, base_width=B,
+                                      encoder=EncoderRange(*INT16_RANGE)))
+    start = 32000
+    odo.set_ticks(start, start)
+    odo.update(0.0)
+    t = 0.0
+    pos = start
+    for _ in range(30):  # 0.2 m/s for 3 s = 8912 ticks: wraps once
+        t += 0.1
+        pos += int(0.02 * TPM)
+        raw = (pos + 32768) % 65536 - 32768
+        odo.set_ticks(raw, raw)
+        odo.update(t)
+    assert odo.x == pytest.approx(30 * int(0.02 * TPM) / TPM, abs=1e-6)
+    assert odo.resets == 0
+
+
+def test_counter_reset_does_not_teleport():
+    odo = started()
+    t, _left, _right = drive(odo, 0.3, 0.3, 5.0)
+    x_before = odo.x
+    odo.set_ticks(0, 0)   # board reset
+    odo.update(t + 0.1)
+    assert odo.resets == 1
+    assert odo.x == pytest.approx(x_before)
+    drive(odo, 0.3, 0.3, 1.0, t0=t + 0.1)
+    assert odo.x == pytest.approx(x_before + 0.3, abs=1e-3)
+
+
+def test_imu_yaw_replaces_encoder_heading():
+    odo = started()
+    odo.set_imu_yaw(1.0)
+    odo.update(0.05)
+    odo.set_ticks(0, 0)
+    odo.set_imu_yaw(1.5)   # IMU says +0.5 rad, wheels say nothing
+    odo.update(0.1)
+    assert odo.theta == pytest.approx(0.5)
+
+
+def test_covariance_grows_with_distance_not_time():
+    odo = started()
+    p0 = odo.state(0.0).pose_cov.copy()
+    odo.set_ticks(0, 0)
+    for k in range(1, 20):
+        odo.update(k * 0.1)
+    assert np.allclose(odo.state(2.0).pose_cov, p0)
+    drive(odo, 0.2, 0.25, 5.0, t0=2.0)
+    cov = odo.state(7.0).pose_cov
+    assert cov[0, 0] > p0[0, 0] and cov[5, 5] > p0[5, 5]
+    assert np.allclose(cov, cov.T)
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_bad_config_names_field():
+    with pytest.raises(ValueError, match="base_width"):
+        OdometryConfig(base_width=0.0)

@@ -1,0 +1,172 @@
+"""Wheel speed estimate, PID, and the per-wheel controller."""
+import math
+
+import pytest
+
+from chefbot_bringup.encoder import INT16_RANGE, EncoderRange
+from chefbot_bringup.wheel_pid import (
+    PidConfig,
+    VelocityPid,
+    WheelController,
+    WheelVelocityEstimator,
+)
+
+TPM = 14854.0
+
+
+def feed(est, v: float, seconds: float, t0: float = 0.0, p0: float = 0.0, rate: float = 30.0,
+         wrap=None, tpm: float = TPM) -> tuple[float, float]:
+    t, p = t0, p0
+    for _ in range(round(seconds * rate)):
+        t += 1.0 / rate
+        p += v * tpm / rate
+        raw = round(p)
+        if wrap:
+            lo, span = wrap
+            raw = (raw - lo) % span + lo
+        est.add_reading(raw, t)
+    return t, p
+
+
+@pytest.mark.parametrize("v", [0.2, -0.2, 0.05, -0.377])
+def test_estimate_converges_both_directions(v):
+    est = WheelVelocityEstimator(PidConfig())
+    t, _ = feed(est, v, 1.0)
+    assert est.velocity(t) == pytest.approx(v, rel=0.01)
+
+
+@pytest.mark.parametrize("v", [0.2, -0.2])
+def test_stop_detected_in_both_directions_while_readings_arrive(v):
+    # The book's bug: a stopping wheel in reverse was never detected as stopped.
+    cfg = PidConfig(rolling_pts=5)
+    est = WheelVelocityEstimator(cfg)
+    t, p = feed(est, v, 1.0)
+    t, _ = feed(est, 0.0, 6 / 30, t0=t, p0=p)
+    assert est.velocity(t) == 0.0
+
+
+@pytest.mark.parametrize("v", [0.2, -0.2])
+def test_silent_encoder_decays_with_the_right_sign(v):
+    # Coarse encoder (100 ticks/m) so the one-tick bound is visible.
+    est = WheelVelocityEstimator(PidConfig(encoder_timeout=0.2, ticks_meter=100.0))
+    t, _ = feed(est, v, 1.0, tpm=100.0)
+    assert est.velocity(t + 0.1) == pytest.approx(v, abs=0.03)   # short gap: hold (3-tick window)
+    later = est.velocity(t + 0.25)                                # bound 1/100/0.25 = 0.04 m/s
+    assert later == pytest.approx(math.copysign(0.04, v))
+    assert est.velocity(t + 20.0) == 0.0   # 1 tick / 20 s < vel_threshold
+
+
+@pytest.mark.parametrize("v", [0.3, -0.3])
+def test_int16_wrap_in_velocity(v):
+    enc = EncoderRange(*INT16_RANGE)
+    est = WheelVelocityEstimator(PidConfig(encoder=enc))
+    start = 30000 if v > 0 else -30000
+    t, _ = feed(est, v, 2.0, p0=start, wrap=(enc.encoder_min, enc.span))
+    assert est.velocity(t) == pytest.approx(v, rel=0.01)
+
+
+def test_pid_output_clamped_and_integral_bounded():
+    cfg = PidConfig()
+    pid = VelocityPid(cfg)
+    for _ in range(1000):
+        out = pid.step(0.3, 0.0, 1 / 30)      # stalled wheel
+    assert out == cfg.out_max
+    assert pid.integral <= cfg.out_max
+    # Once the wheel moves the output comes back down at once (no windup to unwind).
+    out = pid.step(0.3, 0.3, 1 / 30)
+    assert out < cfg.out_max
+
+
+def test_conditional_integration_stops_at_saturation():
+    cfg = PidConfig(feed_forward=False, kp=100.0, ki=100.0)
+    pid = VelocityPid(cfg)
+    for _ in range(3000):
+        pid.step(20.0, 0.0, 1 / 30)          # impossible target: saturates
+    # The integral stopped growing when the output saturated.
+    assert pid.integral < cfg.out_max
+
+
+def test_feed_forward_carries_the_command():
+    cfg = PidConfig()
+    pid = VelocityPid(cfg)
+    out = pid.step(0.377 / 2, 0.377 / 2, 1 / 30)
+    assert out == pytest.approx(cfg.out_max / 2)
+    assert VelocityPid(PidConfig(feed_forward=False)).step(0.2, 0.2, 1 / 30) == 0.0
+
+
+def test_negative_target_negative_output():
+    pid = VelocityPid(PidConfig())
+    assert pid.step(-0.2, 0.0, 1 / 30) < 0
+
+
+def test_dt_capped_after_a_long_gap():
+    cfg = PidConfig(feed_forward=False, kp=0.0, ki=100.0)
+    pid = VelocityPid(cfg)
+    pid.step(0.1, 0.0, 100.0)
+    assert pid.integral == pytest.approx(100.0 * 0.1 * 3 / cfg.rate)
+
+
+def run_controller(ctrl: WheelController, target: float | None, ticks: int, t0: float,
+                   v_true: float = 0.0, p0: float = 0.0):
+    outs = []
+    t, p = t0, p0
+    for _ in range(ticks):
+        t += 1 / 30
+        p += v_true * TPM / 30
+        ctrl.add_reading(int(p), t)
+        if target is not None:
+            ctrl.set_target(target)
+        outs.append(ctrl.tick(t))
+    return outs, t, p
+
+
+def test_controller_idle_until_target_then_times_out_with_one_zero():
+    cfg = PidConfig(timeout_ticks=4)
+    ctrl = WheelController(cfg)
+    outs, t, p = run_controller(ctrl, None, 5, 0.0)
+    assert all(o.motor_cmd is None for o in outs)
+    outs, t, p = run_controller(ctrl, 0.2, 10, t, v_true=0.2, p0=p)
+    assert all(o.motor_cmd and o.motor_cmd > 0 for o in outs)
+    outs, t, p = run_controller(ctrl, None, 6, t, v_true=0.2, p0=p)
+    cmds = [o.motor_cmd for o in outs]
+    # The tick after the last target counted as the first of the 4.
+    assert all(c > 0 for c in cmds[:2])
+    assert cmds[2] == 0.0 and cmds[3:] == [None, None, None]
+
+
+def test_zero_target_stops_at_once_and_resets_integral():
+    ctrl = WheelController(PidConfig())
+    run_controller(ctrl, 0.3, 30, 0.0, v_true=0.0)   # stalled: integral builds
+    assert ctrl.pid.integral > 0
+    outs, _, _ = run_controller(ctrl, 0.0, 1, 1.0)
+    assert outs[0].motor_cmd == 0.0
+    assert ctrl.pid.integral == 0.0
+
+
+def test_integral_does_not_jump_after_idle():
+    cfg = PidConfig(timeout_ticks=3)
+    ctrl = WheelController(cfg)
+    _outs, t, p = run_controller(ctrl, 0.2, 10, 0.0, v_true=0.1)
+    run_controller(ctrl, None, 5, t, p0=p)
+    # Resume after 100 s idle: the first output is as from a fresh start.
+    fresh = WheelController(cfg)
+    fresh.add_reading(0, 99.0)
+    ctrl.add_reading(int(p), 99.0)
+    ctrl.set_target(0.2)
+    fresh.set_target(0.2)
+    a = ctrl.tick(100.0).motor_cmd
+    b = fresh.tick(100.0).motor_cmd
+    assert a == pytest.approx(b)
+
+
+def test_nan_target_ignored():
+    ctrl = WheelController(PidConfig())
+    assert not ctrl.set_target(float("nan"))
+    assert not ctrl.active
+
+
+@pytest.mark.parametrize("field,value", [("rate", 0.0), ("timeout_ticks", 0), ("rolling_pts", 1.5),
+                                         ("ticks_meter", -1.0)])
+def test_bad_config(field, value):
+    with pytest.raises(ValueError, match=field):
+        PidConfig(**{field: value})
