@@ -52,9 +52,9 @@ def print_table(rows: list[dict]) -> None:
     head = ("bench", "case", "metric", "ours", "reference", "ours/ref", "goal", "met")
     table = [head]
     for r in rows:
-        ratio = None
-        if isinstance(r.get("reference"), (int, float)) and r.get("reference") and isinstance(r.get("ours"), (int, float)):
-            ratio = r["ours"] / r["reference"]
+        ours, reference = r.get("ours"), r.get("reference")
+        numeric = isinstance(ours, (int, float)) and isinstance(reference, (int, float))
+        ratio = ours / reference if numeric and reference else None
         ref = fmt(r.get("reference"))
         if r.get("reference_name"):
             ref = f"{ref} ({r['reference_name']})"
@@ -62,7 +62,7 @@ def print_table(rows: list[dict]) -> None:
         table.append((r["bench"], r["case"], r["metric"], fmt(r["ours"]), ref, fmt(ratio), r.get("goal") or "-", met))
     widths = [max(len(str(row[i])) for row in table) for i in range(len(head))]
     for i, row in enumerate(table):
-        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip())
+        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
         if i == 0:
             print("  ".join("-" * w for w in widths))
 
@@ -85,7 +85,7 @@ def main() -> int:
         print(f"[bench] {rel} ...", flush=True)
         try:
             got = load(path).run(quick=args.quick)
-        except Exception:  # one broken benchmark must not hide the others' figures
+        except Exception:  # noqa: BLE001 - one broken benchmark must not hide the others' figures
             traceback.print_exc()
             errors += 1
             continue
@@ -99,7 +99,7 @@ def main() -> int:
     print()
     print_table(rows)
     OUT.mkdir(exist_ok=True)
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     doc = {"time_utc": stamp, "host": platform.node(), "python": platform.python_version(),
            "quick": args.quick, "seconds": round(time.monotonic() - t0, 1), "rows": rows}
     for name in (f"bench-{stamp}.json", "latest.json"):

@@ -21,14 +21,29 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def group_members(pgid: int) -> list[int]:
+    """Live (non-zombie) processes of a process group, read from /proc.
+
+    ``killpg(pgid, 0)`` is not enough: it also succeeds for zombies, such as our
+    own not-yet-reaped child or orphans waiting for PID 1 to reap them.
+    """
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        # fields after the ")" that closes the command name: state ppid pgrp ...
+        rest = stat[stat.rfind(")") + 2:].split()
+        if len(rest) > 2 and int(rest[2]) == pgid and rest[0] not in ("Z", "X"):
+            members.append(int(entry.name))
+    return members
+
+
 def group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    return bool(group_members(pgid))
 
 
 def kill_group(pgid: int, grace_int: float = 5.0, grace_term: float = 3.0) -> None:
@@ -61,7 +76,7 @@ class ProcessGroup:
         self.proc: subprocess.Popen | None = None
         self._out = None
 
-    def __enter__(self) -> "ProcessGroup":
+    def __enter__(self) -> ProcessGroup:
         if self.log is not None:
             self.log.parent.mkdir(parents=True, exist_ok=True)
             self._out = open(self.log, "wb")

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import kill_group  # noqa: E402
+from procs import kill_group
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "build" / "test_results"
@@ -47,7 +47,7 @@ class Totals:
     skipped: int = 0
     failures: list[str] = field(default_factory=list)
 
-    def add(self, other: "Totals") -> None:
+    def add(self, other: Totals) -> None:
         self.passed += other.passed
         self.failed += other.failed
         self.skipped += other.skipped
@@ -133,23 +133,43 @@ def rostest_files() -> list[tuple[str, Path]]:
 
 # ----------------------------------------------------------------- runners
 def run_pytest(env: dict, pattern: str | None) -> Totals:
+    """One pytest run per unit-test directory.
+
+    Separate runs, each with the directory as rootdir and cwd: with one run over
+    several directories the rootdir becomes the repository top, and pytest's
+    importlib mode then names a test module ``chefbot_bringup.test.unit.test_x``,
+    registering a dummy ``chefbot_bringup`` that shadows the real package.
+    """
+    total = Totals()
     dirs = unit_dirs()
     if not dirs:
         log("pytest: no unit test directories")
-        return Totals()
-    xml = RESULTS / "pytest.xml"
-    if xml.exists():
-        xml.unlink()
-    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
-           f"--junitxml={xml}", "-o", "junit_family=xunit2", *[str(d) for d in dirs]]
-    if pattern:
-        cmd += ["-k", pattern]
-    log(f"pytest over {len(dirs)} directories")
+        return total
     env = dict(env, QT_QPA_PLATFORM="offscreen")
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, start_new_session=True)
-    if not xml.exists():
-        return Totals(failed=1, failures=[f"pytest crashed (exit {proc.returncode}) before writing results"])
-    return junit_totals(xml, "pytest")
+    for d in dirs:
+        rel = d.relative_to(ROOT)
+        xml = RESULTS / "pytest" / (str(rel).replace("/", "-") + ".xml")
+        xml.parent.mkdir(parents=True, exist_ok=True)
+        if xml.exists():
+            xml.unlink()
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
+               "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
+        if pattern:
+            cmd += ["-k", pattern]
+        t0 = time.monotonic()
+        proc = subprocess.run(cmd, cwd=d, env=env, start_new_session=True, capture_output=True, text=True)
+        if proc.returncode == 5:  # pytest: no tests collected (e.g. -k selected none here)
+            continue
+        if not xml.exists():
+            t = Totals(failed=1, failures=[f"pytest {rel} crashed (exit {proc.returncode})"])
+        else:
+            t = junit_totals(xml, f"pytest {rel}")
+        log(f"pytest {rel}: {t.passed} passed, {t.failed} failed, {t.skipped} skipped "
+            f"({time.monotonic() - t0:.1f} s)")
+        if t.failed or proc.returncode not in (0, 1):
+            print(proc.stdout[-6000:], proc.stderr[-3000:], sep="\n", flush=True)
+        total.add(t)
+    return total
 
 
 _COUNT_LINE = re.compile(r"(\d+) passed, (\d+) failed(?:, (\d+) skipped)?\s*$")

@@ -1,0 +1,290 @@
+"""The LaunchPad driver's logic without serial ports or ROS (the node adds both).
+
+* ``LineAssembler`` cuts the byte stream into lines with a length cap.
+* ``EncoderContinuity`` turns the board's tick counters into counters that
+  never jump: an MCU reboot (counters back to ~0, or a hello line) or an
+  impossible jump (faster than 1.5× the wheels' top speed) is flagged and
+  absorbed, so odometry downstream never teleports.
+* ``LaunchpadCore`` ties them together: it parses lines, keeps counts for
+  diagnostics, tracks link health (silence timeout), and produces the single
+  coherent ``s <l> <r>`` command per control cycle from the latest left/right
+  requests.
+
+Time is passed in as float seconds (host monotonic or ROS time).
+"""
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+from chefbot_bringup import launchpad_protocol as proto
+
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+
+
+def wrap_int32(v: int) -> int:
+    """Wrap an integer into the int32 range, as the board's counters do."""
+    return (v - INT32_MIN) % 2**32 + INT32_MIN
+
+
+@dataclass(frozen=True)
+class LaunchpadConfig:
+    """Settings of launchpad_node (param/launchpad.yaml); units in the names' comments."""
+
+    port: str = "/dev/ttyACM0"
+    baud: int = 115200
+    silence_timeout: float = 1.0        # s without a valid line before the link counts as dead
+    control_rate: float = 30.0          # Hz, motor commands sent to the board
+    command_timeout: float = 0.5        # s, a wheel command older than this is sent as 0
+    backoff_max: float = 2.0            # s, longest wait between reconnect attempts
+    ticks_meter: float = 29708.0        # ticks per metre (8400 counts/rev, 4X, / (pi * 0.09 m))
+    max_wheel_speed: float = 0.377      # m/s, physical top speed (encoder jump detection)
+    checksum_commands: bool = True
+    battery_empty_voltage: float = 11.0  # V, 0 %
+    battery_full_voltage: float = 12.7   # V, 100 %
+    ultrasonic_frame_id: str = "ultrasonic_link"
+    imu_frame_id: str = "gyro_link"
+
+    def __post_init__(self) -> None:
+        if not self.port:
+            raise ValueError("port must not be empty")
+        for name in ("baud", "silence_timeout", "control_rate", "command_timeout", "backoff_max",
+                     "ticks_meter", "max_wheel_speed"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        if not self.battery_full_voltage > self.battery_empty_voltage:
+            raise ValueError(f"battery_full_voltage ({self.battery_full_voltage}) must exceed "
+                             f"battery_empty_voltage ({self.battery_empty_voltage})")
+
+    @property
+    def max_ticks_per_s(self) -> float:
+        return self.max_wheel_speed * self.ticks_meter
+
+    def battery_fraction(self, volts: float) -> float:
+        """State of charge 0..1 from the voltage (linear between empty and full)."""
+        span = self.battery_full_voltage - self.battery_empty_voltage
+        return min(1.0, max(0.0, (volts - self.battery_empty_voltage) / span))
+
+
+LAUNCHPAD_PARAMS = {
+    "port": "~port", "baud": "~baudRate", "silence_timeout": "~silence_timeout",
+    "control_rate": "~control_rate", "command_timeout": "~command_timeout",
+    "backoff_max": "~reconnect_backoff_max", "ticks_meter": ("ticks_meter", "~ticks_meter"),
+    "max_wheel_speed": "~max_wheel_speed", "checksum_commands": "~checksum_commands",
+    "battery_empty_voltage": "~battery_empty_voltage", "battery_full_voltage": "~battery_full_voltage",
+    "ultrasonic_frame_id": "~ultrasonic_frame_id", "imu_frame_id": "~imu_frame_id",
+}
+
+
+class LineAssembler:
+    """Bytes → complete lines (``\\n``, ``\\r\\n`` or ``\\r`` terminated), capped in length.
+
+    The first line after ``reset()`` (a port (re)open) is reported as partial:
+    the port may have been opened in the middle of a line.
+    """
+
+    def __init__(self, max_len: int = proto.MAX_LINE_BYTES) -> None:
+        self.max_len = max_len
+        self._buf = bytearray()
+        self._overlong = False
+        self._first = True
+
+    def reset(self) -> None:
+        self._buf.clear()
+        self._overlong = False
+        self._first = True
+
+    def feed(self, data: bytes) -> list[bytes | proto.LineError]:
+        out: list[bytes | proto.LineError] = []
+        for byte in data:
+            if byte in (10, 13):  # '\n' or '\r': end of line; an empty one ('\r\n') is skipped
+                if self._overlong:
+                    out.append(proto.LineError("overlong", f"line longer than {self.max_len} bytes dropped"))
+                elif self._first and self._buf:
+                    out.append(proto.LineError("partial", f"first line after open dropped: {bytes(self._buf[:40])!r}"))
+                elif self._buf:
+                    out.append(bytes(self._buf))
+                # Whatever came before the first terminator was a fragment; after it we
+                # are at a line boundary.
+                self._first = False
+                self._buf.clear()
+                self._overlong = False
+            elif self._overlong:
+                continue
+            elif len(self._buf) >= self.max_len:
+                self._overlong = True
+                self._buf.clear()
+            else:
+                self._buf.append(byte)
+        return out
+
+
+@dataclass
+class EncoderEvent:
+    kind: str     # "reset" | "jump"
+    detail: str
+
+
+class EncoderContinuity:
+    """Keep published tick counters continuous across board reboots and glitches.
+
+    ``max_ticks_per_s`` is the physical limit (top wheel speed × ticks per metre);
+    a change larger than ``jump_factor`` × that × elapsed time (+ ``slack`` ticks)
+    is impossible and is absorbed instead of passed on.
+    """
+
+    def __init__(self, max_ticks_per_s: float, jump_factor: float = 1.5, slack: int = 50,
+                 reset_window: int = 100) -> None:
+        if max_ticks_per_s <= 0:
+            raise ValueError(f"max_ticks_per_s must be > 0, got {max_ticks_per_s}")
+        self.max_ticks_per_s = max_ticks_per_s
+        self.jump_factor = jump_factor
+        self.slack = slack
+        self.reset_window = reset_window
+        self._raw: tuple[int, int] | None = None
+        self._out: tuple[int, int] = (0, 0)
+        self._t: float | None = None
+        self._expect_reset = False
+
+    def board_restarted(self) -> None:
+        """The board said hello: its counters start again from zero."""
+        self._expect_reset = True
+
+    def update(self, left: int, right: int, t: float) -> tuple[tuple[int, int], EncoderEvent | None]:
+        """Feed raw counters at time t (s); returns (published counters, event or None)."""
+        event = None
+        if self._raw is None:
+            self._raw, self._t = (left, right), t
+            self._out = (left, right)
+            return self._out, None
+        dl = wrap_int32(left - self._raw[0])
+        dr = wrap_int32(right - self._raw[1])
+        dt = max(t - self._t, 0.0) if self._t is not None else 0.0
+        limit = self.jump_factor * self.max_ticks_per_s * dt + self.slack
+        near_zero = abs(left) <= self.reset_window and abs(right) <= self.reset_window
+        if self._expect_reset and near_zero:
+            event = EncoderEvent("reset", f"board restarted; counters {self._raw} -> ({left}, {right})")
+            dl = dr = 0
+        elif abs(dl) > limit or abs(dr) > limit:
+            kind = "reset" if near_zero else "jump"
+            event = EncoderEvent(kind, f"counters moved ({dl}, {dr}) ticks in {dt:.3f} s; limit {limit:.0f}")
+            dl = dr = 0
+        self._expect_reset = False
+        self._raw, self._t = (left, right), t
+        self._out = (wrap_int32(self._out[0] + dl), wrap_int32(self._out[1] + dr))
+        return self._out, event
+
+
+@dataclass
+class LinkStats:
+    lines_ok: int = 0
+    lines_bad: Counter = field(default_factory=Counter)
+    crc_lines: int = 0
+    reconnects: int = 0
+    encoder_resets: int = 0
+    encoder_jumps: int = 0
+    commands_sent: int = 0
+    board_state: str | None = None   # last drive state in the `s` echo
+    hello: tuple[str, ...] | None = None
+
+    @property
+    def bad_total(self) -> int:
+        return sum(self.lines_bad.values())
+
+
+class LaunchpadCore:
+    """Parse board output, keep counters and link health, build motor commands."""
+
+    def __init__(self, max_ticks_per_s: float, silence_timeout: float = 1.0,
+                 command_timeout: float = 0.5, checksum_commands: bool = True) -> None:
+        if silence_timeout <= 0:
+            raise ValueError(f"silence_timeout must be > 0 s, got {silence_timeout}")
+        if command_timeout <= 0:
+            raise ValueError(f"command_timeout must be > 0 s, got {command_timeout}")
+        self.silence_timeout = silence_timeout
+        self.command_timeout = command_timeout
+        self.checksum_commands = checksum_commands
+        self.assembler = LineAssembler()
+        self.encoders = EncoderContinuity(max_ticks_per_s)
+        self.stats = LinkStats()
+        self.connected = False
+        self._last_rx: float | None = None
+        self._cmd = [0.0, 0.0]
+        self._cmd_t = [float("-inf"), float("-inf")]
+
+    # ---- link
+    def on_open(self, t: float) -> None:
+        self.assembler.reset()
+        self.connected = True
+        self._last_rx = t
+
+    def on_close(self) -> None:
+        if self.connected:
+            self.stats.reconnects += 1
+        self.connected = False
+        self.assembler.reset()
+
+    def silent(self, t: float) -> bool:
+        """True when the open link has delivered no valid line for silence_timeout."""
+        return self.connected and self._last_rx is not None and t - self._last_rx > self.silence_timeout
+
+    # ---- receive
+    def on_bytes(self, data: bytes, t: float) -> list[tuple[object, object]]:
+        """Feed received bytes; returns [(message, extra)] for each valid line.
+
+        ``extra`` is, for Encoders, a tuple (published_left, published_right, EncoderEvent|None);
+        for other messages None.  Invalid lines are counted in ``stats.lines_bad`` by kind and
+        returned as (LineError, None) so the caller can log them.
+        """
+        out: list[tuple[object, object]] = []
+        for item in self.assembler.feed(data):
+            if isinstance(item, proto.LineError):
+                self.stats.lines_bad[item.kind] += 1
+                out.append((item, None))
+                continue
+            try:
+                msg, had_crc = proto.parse_line(item)
+            except proto.LineError as err:
+                self.stats.lines_bad[err.kind] += 1
+                out.append((err, None))
+                continue
+            self.stats.lines_ok += 1
+            self.stats.crc_lines += had_crc
+            self._last_rx = t
+            extra = None
+            if isinstance(msg, proto.Hello):
+                self.stats.hello = msg.fields
+                self.encoders.board_restarted()
+            elif isinstance(msg, proto.SpeedEcho):
+                self.stats.board_state = msg.state
+            elif isinstance(msg, proto.Encoders):
+                (pl, pr), ev = self.encoders.update(msg.left, msg.right, t)
+                if ev is not None:
+                    if ev.kind == "reset":
+                        self.stats.encoder_resets += 1
+                    else:
+                        self.stats.encoder_jumps += 1
+                extra = (pl, pr, ev)
+            out.append((msg, extra))
+        return out
+
+    # ---- transmit
+    def set_left(self, value: float, t: float) -> None:
+        self._cmd[0], self._cmd_t[0] = value, t
+
+    def set_right(self, value: float, t: float) -> None:
+        self._cmd[1], self._cmd_t[1] = value, t
+
+    def command(self, t: float) -> bytes:
+        """The one ``s`` line for this control cycle; a side not refreshed within
+        command_timeout is sent as 0 (its PID stopped publishing)."""
+        left = self._cmd[0] if t - self._cmd_t[0] <= self.command_timeout else 0.0
+        right = self._cmd[1] if t - self._cmd_t[1] <= self.command_timeout else 0.0
+        self.stats.commands_sent += 1
+        return proto.format_command(left, right, self.checksum_commands)
+
+    def stop_command(self) -> bytes:
+        self._cmd = [0.0, 0.0]
+        return proto.format_command(0.0, 0.0, self.checksum_commands)
