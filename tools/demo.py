@@ -92,12 +92,12 @@ def main() -> int:
             return 1
         say(f"TF tree ({len(parents) + 1} frames):")
         print_tree(parents)
-        try:
-            from chefbot_description import model
-            urdf = rospy.get_param("robot_description")
-            say(f"model: {model.summary(urdf)}")
-        except (ImportError, AttributeError):
-            pass
+        from chefbot_description import model
+        robot = model.parse_urdf(rospy.get_param("robot_description"))
+        wheels = model.wheel_geometry(robot)
+        say(f"model read back from robot_description: {len(robot.links)} links, "
+            f"{model.total_mass(robot):.2f} kg, wheel radius {wheels.radius:.3f} m, "
+            f"wheel separation {wheels.separation:.3f} m")
         rospy.signal_shutdown("demo done")
     say("done: the robot model is complete and every frame is published")
     return 0
