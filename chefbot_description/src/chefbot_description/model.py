@@ -22,15 +22,37 @@ import os
 import shutil
 import subprocess
 import xml.etree.ElementTree as ET
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
 PACKAGE_NAME = "chefbot_description"
 SIM_ELEMENT = "chefbot_sim"
 SIM_VERSION = "1"
+
+# The frame tree contract (ARCHITECTURE.md): child frame -> parent frame.
+FRAME_TREE: Mapping[str, str] = {
+    "base_link": "base_footprint",
+    "wheel_left_link": "base_link",
+    "wheel_right_link": "base_link",
+    "caster_front_link": "base_link",
+    "caster_back_link": "base_link",
+    "plate_bottom_link": "base_link",
+    "plate_middle_link": "base_link",
+    "plate_top_link": "base_link",
+    "camera_link": "base_link",
+    "camera_depth_frame": "camera_link",
+    "camera_depth_optical_frame": "camera_depth_frame",
+    "camera_rgb_frame": "camera_link",
+    "camera_rgb_optical_frame": "camera_rgb_frame",
+    "gyro_link": "base_link",
+    "ultrasonic_link": "base_link",
+}
+# Frames that are pure coordinate frames (no body, no inertial).
+VIRTUAL_FRAMES = frozenset({"base_footprint", "camera_depth_frame", "camera_depth_optical_frame",
+                            "camera_rgb_frame", "camera_rgb_optical_frame"})
 
 # Mass and inertia given by urdf_for_physics() to links that have no inertial
 # (pure frames). pybullet would otherwise invent 1 kg for each of them.
@@ -58,8 +80,8 @@ class XacroError(RuntimeError):
     """xacro could not expand a model; the message carries xacro's own error text."""
 
 
-def expand_xacro(path: Optional[os.PathLike | str] = None,
-                 args: Optional[Mapping[str, str]] = None,
+def expand_xacro(path: os.PathLike | str | None = None,
+                 args: Mapping[str, str] | None = None,
                  timeout: float = 60.0) -> str:
     """Run the ``xacro`` command and return the URDF XML string.
 
@@ -108,7 +130,7 @@ class Geometry:
 @dataclass(frozen=True)
 class Link:
     name: str
-    inertial: Optional[Inertial]
+    inertial: Inertial | None
     collisions: tuple[Geometry, ...]
     visuals: tuple[Geometry, ...]
 
@@ -124,8 +146,8 @@ class Joint:
     xyz: tuple[float, float, float]
     rpy: tuple[float, float, float]
     axis: tuple[float, float, float]
-    effort: Optional[float] = None  # N*m (revolute/continuous)
-    velocity: Optional[float] = None  # rad/s
+    effort: float | None = None  # N*m (revolute/continuous)
+    velocity: float | None = None  # rad/s
 
 
 @dataclass(frozen=True)
@@ -143,7 +165,7 @@ class RobotModel:
             raise ValueError(f"URDF must have exactly one root link, found {sorted(roots)}")
         return roots[0]
 
-    def parent_joint(self, link: str) -> Optional[Joint]:
+    def parent_joint(self, link: str) -> Joint | None:
         """The joint whose child is ``link`` (None for the root)."""
         if link not in self.links:
             raise KeyError(f"no link named {link!r} in the URDF")
@@ -157,7 +179,7 @@ class RobotModel:
         return {(j.parent, j.child) for j in self.joints.values()}
 
 
-def _floats(text: Optional[str], n: int, what: str, default: Optional[Sequence[float]] = None) -> tuple:
+def _floats(text: str | None, n: int, what: str, default: Sequence[float] | None = None) -> tuple:
     if text is None:
         if default is None:
             raise ValueError(f"{what}: missing")
@@ -295,7 +317,7 @@ def pose_matrix(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
     return t
 
 
-def frame_transform(model: RobotModel, frame: str, base: Optional[str] = None) -> np.ndarray:
+def frame_transform(model: RobotModel, frame: str, base: str | None = None) -> np.ndarray:
     """Pose of ``frame`` in ``base`` (default the root) with all joints at zero, 4x4.
 
     ``base`` must be an ancestor of ``frame``.
@@ -495,7 +517,10 @@ def _name(text: str, what: str) -> str:
 
 
 def _vector(text: str, what: str) -> tuple:
-    return _floats(text, 3, what)
+    try:
+        return _floats(text, 3, what)
+    except ValueError:
+        raise ValueError(f"{what}={text!r} is not 3 numbers") from None
 
 
 _POS = _number(float)
