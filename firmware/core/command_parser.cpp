@@ -191,3 +191,6 @@ RxEvent CommandParser::finish_line(Command& out) {
 }
 
 }  // namespace chefbot
+
+// Out-of-line definition: C++11 needs one when the constant is odr-used.
+const size_t chefbot::CommandParser::kMaxLine;

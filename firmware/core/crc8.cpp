@@ -3,11 +3,9 @@
 namespace chefbot {
 
 uint8_t crc8_update(uint8_t crc, uint8_t byte) {
-  crc = static_cast<uint8_t>(crc ^ byte);
-  for (int i = 0; i < 8; ++i) {
-    crc = (crc & 0x80u) ? static_cast<uint8_t>((crc << 1) ^ 0x07u) : static_cast<uint8_t>(crc << 1);
-  }
-  return crc;
+  uint32_t c = static_cast<uint32_t>(crc ^ byte);
+  for (int i = 0; i < 8; ++i) c = (c & 0x80u) ? ((c << 1) ^ 0x07u) : (c << 1);
+  return static_cast<uint8_t>(c);
 }
 
 uint8_t crc8(const char* data, size_t len) {

@@ -202,3 +202,7 @@ void Firmware::emit_status(uint32_t now_us) {
 }
 
 }  // namespace chefbot
+
+// Out-of-line definitions: C++11 needs them when the constants are odr-used.
+const int chefbot::Firmware::kMaxRxBytesPerPoll;
+const uint32_t chefbot::Firmware::kImuStaleUs;

@@ -8,6 +8,9 @@ namespace {
 
 const uint32_t kPow10[] = {1u, 10u, 100u, 1000u, 10000u, 100000u, 1000000u};
 
+// Rounded division that cannot overflow near UINT32_MAX.
+uint32_t div_round(uint32_t v, uint32_t d) { return v / d + ((v % d) >= (d + 1u) / 2u ? 1u : 0u); }
+
 int32_t round_to_int(float v) { return static_cast<int32_t>(v >= 0.0f ? v + 0.5f : v - 0.5f); }
 
 int32_t quat_component_e4(float v) {
@@ -102,13 +105,13 @@ const char* drive_state_name(DriveState s) {
   switch (s) {
     case DriveState::Idle: return "idle";
     case DriveState::Run: return "run";
-    case DriveState::Timeout: return "wdog";
+    case DriveState::Timeout: return "timeout";
   }
   return "?";
 }
 
 size_t format_battery(LineBuilder& b, uint32_t millivolts, bool crc) {
-  uint32_t cv = (millivolts + 5u) / 10u;  // centivolts, rounded
+  uint32_t cv = div_round(millivolts, 10u);  // centivolts
   if (cv > 65535u) cv = 65535u;
   b.begin('b');
   b.add_fixed(static_cast<int32_t>(cv), 2);
@@ -116,7 +119,7 @@ size_t format_battery(LineBuilder& b, uint32_t millivolts, bool crc) {
 }
 
 size_t format_time(LineBuilder& b, uint32_t micros, uint32_t period_us, bool crc) {
-  uint32_t ms = (period_us + 500u) / 1000u;
+  uint32_t ms = div_round(period_us, 1000u);
   if (ms > 999999u) ms = 999999u;
   b.begin('t');
   b.add_uint(micros);
@@ -182,3 +185,6 @@ size_t format_diag(LineBuilder& b, const DiagCounters& d, bool crc) {
 }
 
 }  // namespace chefbot
+
+// Out-of-line definition: C++11 needs one when the constant is odr-used.
+const size_t chefbot::LineBuilder::kCapacity;

@@ -67,3 +67,8 @@ void UltrasonicRanger::echo_edge(bool level, uint32_t t_us) {
 }
 
 }  // namespace chefbot
+
+// Out-of-line definitions: C++11 needs them when the constants are odr-used.
+const uint32_t chefbot::UltrasonicRanger::kNoEcho;
+const uint32_t chefbot::UltrasonicRanger::kMinCm;
+const uint32_t chefbot::UltrasonicRanger::kRiseTimeoutUs;

@@ -227,3 +227,8 @@ void HostBoard::advance(uint64_t us) {
 
 }  // namespace host
 }  // namespace chefbot
+
+const uint32_t chefbot::host::HostBoard::kEchoDelayUs;
+const uint32_t chefbot::host::HostBoard::kImuPeriodUs;
+const size_t chefbot::host::HostBoard::kRxBufferBytes;
+const size_t chefbot::host::HostBoard::kWireBufferBytes;
