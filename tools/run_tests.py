@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -59,24 +60,31 @@ def log(msg: str) -> None:
 
 
 def junit_totals(path: Path, label: str) -> Totals:
-    """Count test cases in a JUnit XML file (pytest's and rostest's)."""
+    """Count test cases in a JUnit XML file (pytest's, rosunit's, rostest's).
+
+    A suite may declare more errors/failures than it has failing cases (rosunit
+    reports an exception outside a test method, or a crashed test node, only in
+    the suite's ``errors`` attribute): the difference counts as failures.
+    """
     t = Totals()
     root = ET.parse(path).getroot()
-    for case in root.iter("testcase"):
-        name = f"{label}::{case.get('classname', '')}.{case.get('name', '')}"
-        if case.find("failure") is not None or case.find("error") is not None:
-            t.failed += 1
-            t.failures.append(name)
-        elif case.find("skipped") is not None:
-            t.skipped += 1
-        else:
-            t.passed += 1
-    # rostest reports a crashed/missing test node as a suite-level error with no case
-    if t.passed + t.failed + t.skipped == 0:
-        errors = sum(int(s.get("errors", 0)) + int(s.get("failures", 0)) for s in root.iter("testsuite"))
-        if errors or root.get("errors", "0") not in ("0", None):
-            t.failed += 1
-            t.failures.append(f"{label}: suite error without test cases")
+    suites = [root] if root.tag == "testsuite" else list(root.iter("testsuite"))
+    for suite in suites:
+        failed_here = 0
+        for case in suite.iter("testcase"):
+            name = f"{label}::{case.get('classname', '')}.{case.get('name', '')}"
+            if case.find("failure") is not None or case.find("error") is not None:
+                t.failed += 1
+                failed_here += 1
+                t.failures.append(name)
+            elif case.find("skipped") is not None:
+                t.skipped += 1
+            else:
+                t.passed += 1
+        declared = int(suite.get("errors", 0) or 0) + int(suite.get("failures", 0) or 0)
+        if declared > failed_here:
+            t.failed += declared - failed_here
+            t.failures.append(f"{label}: {declared - failed_here} error(s) outside test cases in {path.name}")
     return t
 
 
@@ -227,20 +235,24 @@ def run_rostests(env: dict, pattern: str | None) -> Totals:
     for pkg, test in tests:
         rel = test.relative_to(ROOT)
         name = f"{pkg}/{test.stem}"
-        xml = RESULTS / "rostest" / f"{pkg}-{test.stem}.xml"
-        if xml.exists():
-            xml.unlink()
+        out_dir = RESULTS / "rostest" / f"{pkg}-{test.stem}"
+        shutil.rmtree(out_dir, ignore_errors=True)
         logf = RESULTS / "rostest" / f"{pkg}-{test.stem}.log"
         t0 = time.monotonic()
-        # rostest starts its own master on a free port unless --reuse-master.
-        cmd = ["rostest", "--results-filename", xml.name, "--results-base-dir", str(xml.parent.parent),
-               pkg, str(test)]
+        # An absolute path alone: rostest infers the package from it (pkg + path is rejected).
+        # Its own results directory per test, since rostest picks the file names itself.
+        cmd = ["rostest", "--results-base-dir", str(out_dir), str(test)]
         rc, to = run_group(cmd, env, ROSTEST_TIMEOUT_S, logf)
-        # rostest puts the file in <base>/<pkg>/<name>
-        produced = RESULTS / pkg / xml.name
-        if produced.exists():
-            produced.replace(xml)
-        t = junit_totals(xml, name) if xml.exists() else Totals()
+        # rosunit-*.xml: one per test node, with its individual cases; rostest-*.xml: one
+        # case per test node (fails when a node never wrote results).
+        t = Totals()
+        for xml in sorted(out_dir.glob("**/rosunit-*.xml")):
+            t.add(junit_totals(xml, name))
+        agg = Totals()
+        for xml in sorted(out_dir.glob("**/rostest-*.xml")):
+            agg.add(junit_totals(xml, name))
+        if agg.failed and not t.failed:
+            t.add(Totals(failed=agg.failed, failures=agg.failures))
         if to:
             t.failed += 1
             t.failures.append(f"{name}: timed out after {ROSTEST_TIMEOUT_S:.0f} s")

@@ -46,6 +46,15 @@ def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:
     assert t.failed == 1 and t.passed == 0
 
 
+def test_junit_suite_error_beside_passing_cases_counts(tmp_path: Path) -> None:
+    # rosunit: the test method passed, but the node then died (exit 1) -> errors="1"
+    xml = tmp_path / "r.xml"
+    xml.write_text('<testsuite errors="1" failures="0" tests="1">'
+                   '<testcase classname="c" name="t"/></testsuite>')
+    t = run_tests.junit_totals(xml, "lbl")
+    assert (t.passed, t.failed) == (1, 1)
+
+
 def test_count_line_pattern() -> None:
     m = run_tests._COUNT_LINE.search("firmware: 12 passed, 3 failed, 1 skipped")
     assert m and m.groups() == ("12", "3", "1")
