@@ -1,0 +1,517 @@
+"""The ChefBot simulator core, without ROS.
+
+Steps physics at a fixed 1/240 s, runs the plugin-mode differential drive
+(cmd_vel → wheel speeds, 0.6 s command timeout, odometry from the simulated
+wheel joint angles) and produces sensor readings at their configured rates,
+all on sim time.  :meth:`Simulator.step` returns the readings due as
+:class:`Event` objects; the ROS node turns them into messages, the benchmark
+throws them away.
+
+Parameters come from the ``<chefbot_sim>`` block of the robot URDF
+(``chefbot_description.model.load_sim_params``) plus :class:`SimOptions` for
+what the URDF does not describe (publishing rates of ROS-side topics, the
+depth method, the seed).  Units: m, s, rad, Hz.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from chefbot_sim.bullet import BulletSim
+from chefbot_sim.raycast import RayCaster
+from chefbot_sim.world import Pose2D, Shape, World
+
+ORIGIN = Pose2D(0.0, 0.0, 0.0)
+SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
+
+
+class SimConfigError(ValueError):
+    """The robot description cannot drive the simulator (names what is missing)."""
+
+
+@dataclass
+class SimOptions:
+    """Simulator settings not in the URDF.  Rates in Hz of sim time (0 = off)."""
+
+    seed: int = 0
+    clock_rate: float = 100.0          # /clock publishing, not the physics rate
+    joint_state_rate: float = 50.0
+    ground_truth_rate: float = 50.0
+    bumper_rate: float = 20.0
+    rgb_rate: float = 2.0              # TinyRenderer is ~2 ms per 80×60 frame
+    rgb_width: int = 80
+    rgb_height: int = 60
+    depth_band_rows: int = 10          # rows around the centre cast exactly (depth_to_scan's scan_height)
+    depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
+    depth_coarse_stride: int = 8       # px between coarse samples outside the band
+    sonar_rings: int = 2               # rings of 8 rays in the cone, plus the axis ray
+    time_step: float = 1.0 / 240.0
+
+    def validate(self) -> None:
+        if self.depth_fill not in ("coarse", "full", "none"):
+            raise SimConfigError(f"depth_fill must be coarse, full or none, got {self.depth_fill!r}")
+        for name in ("clock_rate", "joint_state_rate", "ground_truth_rate", "bumper_rate", "rgb_rate"):
+            if getattr(self, name) < 0:
+                raise SimConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.depth_band_rows < 1 or self.depth_coarse_stride < 1:
+            raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
+        if self.rgb_width < 1 or self.rgb_height < 1:
+            raise SimConfigError("rgb_width and rgb_height must be >= 1")
+
+
+class Event(NamedTuple):
+    """A reading: ``kind`` (one of SENSORS), sim time ``stamp`` (s) and ``data``."""
+
+    kind: str
+    stamp: float
+    data: Any
+
+
+@dataclass
+class CameraModel:
+    """Pinhole intrinsics (ROS convention: integer pixel coordinates are pixel centres)."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @classmethod
+    def from_fov(cls, width: int, height: int, horizontal_fov: float) -> CameraModel:
+        f = (width / 2.0) / math.tan(horizontal_fov / 2.0)
+        return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
+
+    def rays(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Directions (N, 3) in the optical frame with z = 1, for every (row, col) pair
+        of the grid ``rows × cols``, row-major."""
+        vv, uu = np.meshgrid(rows, cols, indexing="ij")
+        return np.stack([(uu.ravel() - self.cx) / self.fx, (vv.ravel() - self.cy) / self.fy,
+                         np.ones(uu.size)], axis=1)
+
+    def info(self) -> dict:
+        """CameraInfo fields: K, P (row-major), D, distortion model."""
+        k = [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
+        p = [self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+        return {"width": self.width, "height": self.height, "K": k, "P": p, "D": [0.0] * 5,
+                "distortion_model": "plumb_bob"}
+
+
+def load_params(urdf_xml: str) -> Any:
+    """The ``<chefbot_sim>`` block of the URDF via chefbot_description's reader."""
+    try:
+        from chefbot_description.model import load_sim_params
+    except ImportError as e:  # pragma: no cover - the package is a dependency
+        raise SimConfigError(f"chefbot_description.model is not importable: {e}") from e
+    try:
+        return load_sim_params(urdf_xml)
+    except ValueError as e:
+        raise SimConfigError(f"robot_description has no usable <chefbot_sim> block: {e}") from e
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def matrix_to_quat(m: np.ndarray) -> np.ndarray:
+    """(x, y, z, w) of a rotation matrix (Shepperd's method, w >= 0)."""
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    q = np.array(q)
+    return -q if q[3] < 0 else q
+
+
+def yaw_of(q: np.ndarray) -> float:
+    x, y, z, w = q
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+@dataclass
+class _State:
+    """Everything outside pybullet that a snapshot must carry."""
+
+    time: float = 0.0
+    steps: int = 0
+    due: dict[str, float] = field(default_factory=dict)
+    cmd: tuple[float, float] = (0.0, 0.0)
+    cmd_time: float = -math.inf
+    wheel_target: tuple[float, float] = (0.0, 0.0)
+    odom: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wheel_prev: tuple[float, float] | None = None
+    imu_prev_vel: np.ndarray | None = None
+    rng_state: dict | None = None
+
+
+class Simulator:
+    """ChefBot in a world, plugin-mode drive, sensors on sim time.
+
+    ``urdf_xml`` is the robot_description (with the ``<chefbot_sim>`` block),
+    ``start`` the pose of base_footprint in the world frame.  The same seed and
+    the same calls give the same run.
+    """
+
+    def __init__(self, urdf_xml: str, world: World, start: Pose2D = ORIGIN,
+                 options: SimOptions | None = None, gui: bool = False) -> None:
+        self.options = options or SimOptions()
+        self.options.validate()
+        self.params = load_params(urdf_xml)
+        self.world = world
+        self.start = start
+        self.bullet = BulletSim(gui=gui, time_step=self.options.time_step)
+        self.bullet.load_world(world)
+        self.bullet.load_robot(urdf_xml, start)
+        p = self.params
+        self._wheels = [self.bullet.joint(p.drive.left_joint), self.bullet.joint(p.drive.right_joint)]
+        self.joint_names = list(self.bullet.movable_joints())
+        self._joint_idx = [self.bullet.movable_joints()[n] for n in self.joint_names]
+        for name in (p.depth_camera.depth_frame, p.depth_camera.rgb_frame, p.imu.frame,
+                     p.ultrasonic.frame, p.drive.base_frame, p.bumper.link):
+            self.bullet.frame(name)  # fail now, naming the frame, not at the first reading
+        cam = p.depth_camera
+        self.depth_camera = CameraModel.from_fov(cam.width, cam.height, cam.horizontal_fov)
+        self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
+        self._spawned: list[Shape] = []
+        self._caster = RayCaster(world.shapes)
+        self._build_depth_rays()
+        self._sonar_dirs = self._cone(p.ultrasonic.field_of_view / 2.0, self.options.sonar_rings)
+        self.rates = {
+            "clock": self.options.clock_rate, "joint_states": self.options.joint_state_rate,
+            "ground_truth": self.options.ground_truth_rate, "odom": p.drive.update_rate,
+            "imu": p.imu.update_rate, "ultrasonic": p.ultrasonic.update_rate,
+            "depth": cam.update_rate, "rgb": self.options.rgb_rate, "bumper": self.options.bumper_rate,
+        }
+        self.enabled = {k: v > 0 for k, v in self.rates.items()}
+        self.rng = np.random.default_rng(self.options.seed)
+        self.s = _State(due={k: 0.0 for k in SENSORS})
+        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self._initial = self.bullet.save_state()
+
+    # ------------------------------------------------------------ control
+    @property
+    def time(self) -> float:
+        """Sim time in s."""
+        return self.s.time
+
+    def set_cmd_vel(self, v: float, w: float) -> None:
+        """A cmd_vel (v m/s forward, w rad/s yaw rate), stamped now in sim time."""
+        self.s.cmd = (float(v), float(w))
+        self.s.cmd_time = self.s.time
+
+    def set_enabled(self, kind: str, on: bool) -> None:
+        """Switch a reading on/off (the node switches off what nobody subscribes to)."""
+        if kind not in self.enabled:
+            raise KeyError(kind)
+        self.enabled[kind] = bool(on) and self.rates[kind] > 0
+
+    def _drive(self) -> None:
+        d = self.params.drive
+        v, w = self.s.cmd
+        if self.s.time - self.s.cmd_time > d.command_timeout:
+            v, w = 0.0, 0.0
+        r = d.wheel_radius
+        target = ((v - w * d.wheel_separation / 2.0) / r, (v + w * d.wheel_separation / 2.0) / r)
+        if target != self.s.wheel_target:
+            self.bullet.set_joint_velocities(self._wheels, target, d.torque)
+            self.s.wheel_target = target
+
+    # ------------------------------------------------------------ stepping
+    def step(self, n: int = 1) -> list[Event]:
+        """Advance ``n`` physics steps; return the readings that fell due."""
+        events: list[Event] = []
+        dt = self.options.time_step
+        for _ in range(n):
+            self._drive()
+            self.bullet.step()
+            self.s.steps += 1
+            self.s.time = self.s.steps * dt
+            for kind in SENSORS:
+                rate = self.rates[kind]
+                if rate <= 0 or self.s.time + 1e-9 < self.s.due[kind]:
+                    continue
+                # stay on the rate's grid; only re-anchor if we fell behind
+                self.s.due[kind] += 1.0 / rate
+                if self.s.due[kind] <= self.s.time + 1e-9:
+                    self.s.due[kind] = self.s.time + 1.0 / rate
+                if kind == "odom":  # integrate odometry even when nobody listens
+                    data = self._odom()
+                    if self.enabled[kind]:
+                        events.append(Event(kind, self.s.time, data))
+                    continue
+                if kind == "imu":
+                    data = self._imu()
+                    if self.enabled[kind]:
+                        events.append(Event(kind, self.s.time, data))
+                    continue
+                if self.enabled[kind]:
+                    events.append(Event(kind, self.s.time, self._read(kind)))
+        return events
+
+    def run(self, duration: float, on_event: Callable[[Event], None] | None = None) -> None:
+        """Advance by ``duration`` s of sim time, passing each reading to ``on_event``."""
+        n = int(round(duration / self.options.time_step))
+        for _ in range(n):
+            for e in self.step():
+                if on_event is not None:
+                    on_event(e)
+
+    def _read(self, kind: str) -> Any:
+        if kind == "clock":
+            return self.s.time
+        if kind == "joint_states":
+            pos, vel = self.bullet.joint_states(self._joint_idx)
+            return {"name": self.joint_names, "position": pos, "velocity": vel}
+        if kind == "ground_truth":
+            return self.ground_truth()
+        if kind == "ultrasonic":
+            return self._sonar()
+        if kind == "depth":
+            return self.depth_image()
+        if kind == "rgb":
+            return self.rgb_image()
+        if kind == "bumper":
+            contacts = self.bullet.robot_contacts()
+            return {"pressed": bool(contacts),
+                    "bodies": sorted({self.bullet.body_name(c[1]) for c in contacts})}
+        raise KeyError(kind)
+
+    # ------------------------------------------------------------ readings
+    def ground_truth(self) -> dict:
+        """base_footprint pose in the world frame and its twist in the base frame."""
+        pos, quat, lin, ang = self.bullet.base_state()
+        rot = quat_to_matrix(quat)
+        return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
+                "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_of(quat)}
+
+    def _odom(self) -> dict:
+        d = self.params.drive
+        ang, vel = self.bullet.joint_states(self._wheels)
+        pl, pr = self.s.wheel_prev
+        dl = (ang[0] - pl) * d.wheel_radius
+        dr = (ang[1] - pr) * d.wheel_radius
+        self.s.wheel_prev = (float(ang[0]), float(ang[1]))
+        ds, dth = (dl + dr) / 2.0, (dr - dl) / d.wheel_separation
+        x, y, th = self.s.odom
+        x += ds * math.cos(th + dth / 2.0)
+        y += ds * math.sin(th + dth / 2.0)
+        th = math.atan2(math.sin(th + dth), math.cos(th + dth))
+        self.s.odom = (x, y, th)
+        v = (vel[0] + vel[1]) / 2.0 * d.wheel_radius
+        w = (vel[1] - vel[0]) * d.wheel_radius / d.wheel_separation
+        return {"x": x, "y": y, "yaw": th, "v": float(v), "w": float(w)}
+
+    def _imu(self) -> dict:
+        imu = self.params.imu
+        pos, rot = self.bullet.frame_pose(imu.frame)
+        _, _, lin, ang = self.bullet.base_state()
+        prev = self.s.imu_prev_vel
+        period = 1.0 / self.rates["imu"]
+        acc_world = np.zeros(3) if prev is None else (lin - prev) / period
+        self.s.imu_prev_vel = lin
+        # an accelerometer at rest reads +g upwards
+        acc = rot.T @ (acc_world + np.array([0.0, 0.0, 9.81]))
+        gyro = rot.T @ ang
+        gyro = gyro + self.rng.normal(0.0, imu.gyro_noise_stddev, 3) if imu.gyro_noise_stddev > 0 else gyro
+        acc = acc + self.rng.normal(0.0, imu.accel_noise_stddev, 3) if imu.accel_noise_stddev > 0 else acc
+        return {"orientation": matrix_to_quat(rot), "angular_velocity": gyro, "linear_acceleration": acc,
+                "gyro_variance": imu.gyro_noise_stddev ** 2, "accel_variance": imu.accel_noise_stddev ** 2}
+
+    @staticmethod
+    def _cone(half_angle: float, rings: int) -> np.ndarray:
+        """Unit directions (frame +x axis) filling a cone: the axis + rings of 8 rays."""
+        dirs = [np.array([1.0, 0.0, 0.0])]
+        for k in range(1, rings + 1):
+            a = half_angle * k / rings
+            for j in range(8):
+                phi = 2.0 * math.pi * j / 8
+                dirs.append(np.array([math.cos(a), math.sin(a) * math.cos(phi), math.sin(a) * math.sin(phi)]))
+        return np.array(dirs)
+
+    def _sonar(self) -> dict:
+        """Range (m) of the nearest echo in the cone; +inf without an echo (REP 117)."""
+        us = self.params.ultrasonic
+        pos, rot = self.bullet.frame_pose(us.frame)
+        # no floor echoes: the lower rays of the 15 degree cone would hit the
+        # floor 0.8 m ahead, which the real HC-SR04 does not report
+        t = self._caster.cast(pos, self._sonar_dirs @ rot.T, us.max_range, floor=False)
+        r = float(np.min(t))
+        if math.isfinite(r):
+            if us.noise_stddev > 0:
+                r += float(self.rng.normal(0.0, us.noise_stddev))
+            r = min(max(r, us.min_range), us.max_range)
+        return {"range": r, "min_range": us.min_range, "max_range": us.max_range,
+                "field_of_view": us.field_of_view}
+
+    def _build_depth_rays(self) -> None:
+        cam = self.depth_camera
+        band = self.options.depth_band_rows
+        first = max(0, int(round(cam.cy - (band - 1) / 2.0)))
+        self._band_rows = np.arange(first, min(cam.height, first + band))
+        mode = self.options.depth_fill
+        stride = self.options.depth_coarse_stride
+        if mode == "full":
+            rows = np.arange(cam.height)
+            self._depth_rows, self._depth_cols = rows, np.arange(cam.width)
+            self._coarse = None
+        else:
+            self._depth_rows, self._depth_cols = self._band_rows, np.arange(cam.width)
+            self._coarse = None
+            if mode == "coarse":
+                rows = np.arange(stride // 2, cam.height, stride)
+                cols = np.arange(stride // 2, cam.width, stride)
+                self._coarse = (rows, cols)
+        self._dirs_exact = cam.rays(self._depth_rows, self._depth_cols)
+        self._dirs_coarse = cam.rays(*self._coarse) if self._coarse is not None else None
+
+    def depth_image(self) -> np.ndarray:
+        """Depth (m, along the optical axis) as float32 (H, W); NaN = no reading.
+
+        Rows of the scan band (``depth_band_rows`` around the centre) are exact
+        per pixel; with ``depth_fill`` coarse, other pixels take the depth of the
+        nearest coarse sample; with none they are NaN; with full every pixel is exact.
+        """
+        cam, p = self.depth_camera, self.params.depth_camera
+        pos, rot = self.bullet.frame_pose(p.depth_frame)
+        img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
+        t = self._caster.cast(pos, self._dirs_exact @ rot.T, p.max_range)
+        img[self._depth_rows[0]:self._depth_rows[-1] + 1, :] = t.reshape(len(self._depth_rows), cam.width)
+        if self._coarse is not None:
+            rows, cols = self._coarse
+            tc = self._caster.cast(pos, self._dirs_coarse @ rot.T, p.max_range).reshape(len(rows), len(cols))
+            stride = self.options.depth_coarse_stride
+            ri = np.clip(np.arange(cam.height) // stride, 0, len(rows) - 1)
+            ci = np.clip(np.arange(cam.width) // stride, 0, len(cols) - 1)
+            fill = tc[ri][:, ci]
+            mask = np.ones(cam.height, bool)
+            mask[self._band_rows] = False
+            img[mask] = fill[mask]
+        if p.noise_stddev > 0:
+            img += self.rng.normal(0.0, p.noise_stddev, img.shape).astype(np.float32)
+        img[~((img >= p.min_range) & (img <= p.max_range))] = np.nan
+        return img
+
+    def rgb_image(self) -> np.ndarray:
+        """uint8 (H, W, 3) colour image from the RGB optical frame (TinyRenderer)."""
+        cam, p = self.rgb_camera, self.params.depth_camera
+        pos, rot = self.bullet.frame_pose(p.rgb_frame)
+        img, _ = self.bullet.render(cam.width, cam.height, pos, rot, cam.fy, 0.05, p.max_range, rgb=True)
+        return img
+
+    # ------------------------------------------------------------ world edits
+    def _rebuild_caster(self) -> None:
+        self._caster = RayCaster(self.world.shapes + self._spawned)
+
+    def spawn(self, shape: Shape) -> None:
+        """Add a static obstacle (its name must be new)."""
+        if any(s.name == shape.name for s in self.world.shapes + self._spawned):
+            raise ValueError(f"an object named '{shape.name}' exists already")
+        self.bullet.add_shape(shape)
+        self._spawned.append(shape)
+        self._rebuild_caster()
+
+    def remove(self, name: str) -> None:
+        """Remove a spawned obstacle."""
+        for s in self._spawned:
+            if s.name == name:
+                self.bullet.remove_shape(name)
+                self._spawned.remove(s)
+                self._rebuild_caster()
+                return
+        raise ValueError(f"no spawned obstacle named '{name}'")
+
+    @property
+    def spawned(self) -> list[str]:
+        return [s.name for s in self._spawned]
+
+    def teleport(self, pose: Pose2D) -> None:
+        """Put the robot at ``pose`` at rest; odometry keeps counting from where it was."""
+        self.bullet.teleport(pose)
+        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.imu_prev_vel = None
+        self.s.cmd_time = -math.inf
+
+    def reset(self) -> None:
+        """Robot back to the start pose at rest, spawned obstacles removed,
+        odometry zeroed.  Sim time keeps running forward (like Gazebo's
+        reset_world), so ROS clients never see time jump back."""
+        for name in list(self.spawned):
+            self.remove(name)
+        self.bullet.restore_state(self._initial)
+        self.s.wheel_target = (math.nan, math.nan)  # force re-applying the motors
+        self.s.cmd = (0.0, 0.0)
+        self.s.cmd_time = -math.inf
+        self.s.odom = (0.0, 0.0, 0.0)
+        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.imu_prev_vel = None
+        self._drive()
+
+    # ------------------------------------------------------------ snapshots
+    def snapshot(self) -> tuple[int, _State, list[Shape]]:
+        """Everything needed to continue identically later (physics + drive,
+        odometry, schedules, noise generator).  Valid while the set of spawned
+        obstacles is unchanged."""
+        st = _State(**{k: getattr(self.s, k) for k in self.s.__dataclass_fields__})
+        st.due = dict(self.s.due)
+        st.rng_state = self.rng.bit_generator.state
+        return self.bullet.save_state(), st, list(self._spawned)
+
+    def restore(self, snap: tuple[int, _State, list[Shape]]) -> None:
+        state_id, st, spawned = snap
+        if [s.name for s in spawned] != self.spawned:
+            raise ValueError("snapshot was taken with different spawned obstacles")
+        self.bullet.restore_state(state_id)
+        self.s = _State(**{k: getattr(st, k) for k in st.__dataclass_fields__})
+        self.s.due = dict(st.due)
+        self.rng.bit_generator.state = st.rng_state
+        target = self.s.wheel_target
+        self.bullet.set_joint_velocities(self._wheels, target, self.params.drive.torque)
+
+    def close(self) -> None:
+        self.bullet.close()
+
+
+class Pacer:
+    """Holds the sim to ``real_time_factor`` × wall time (0 = as fast as possible)."""
+
+    def __init__(self, real_time_factor: float, clock: Callable[[], float] = _time.monotonic) -> None:
+        if real_time_factor < 0:
+            raise ValueError(f"real_time_factor must be >= 0, got {real_time_factor}")
+        self.rtf = real_time_factor
+        self._clock = clock
+        self._wall0: float | None = None
+        self._sim0 = 0.0
+
+    def restart(self, sim_time: float) -> None:
+        """Forget the past (after a pause): pace from here on."""
+        self._wall0 = self._clock()
+        self._sim0 = sim_time
+
+    def delay(self, sim_time: float) -> float:
+        """Seconds of wall time to wait before simulating past ``sim_time``."""
+        if self.rtf <= 0:
+            return 0.0
+        if self._wall0 is None:
+            self.restart(sim_time)
+        target = self._wall0 + (sim_time - self._sim0) / self.rtf
+        return max(0.0, target - self._clock())
