@@ -1,0 +1,115 @@
+"""Conversions between ROS messages and the pure cores (message types, no rospy).
+
+Time stamps are passed in by the caller (a ``rospy.Time`` or ``genpy.Time``).
+"""
+from __future__ import annotations
+
+import array
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TransformStamped
+from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
+
+from chefbot_navigation.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
+from chefbot_navigation.grid import GridInfo, OccupancyMap
+
+
+def yaw_to_quaternion(yaw: float) -> Quaternion:
+    """Quaternion message for a rotation of ``yaw`` rad about +z."""
+    return Quaternion(*quaternion_from_yaw(yaw))
+
+
+def pose_to_pose2d(p: Pose) -> Pose2D:
+    """Planar part of a Pose message (quaternion normalised; zero quaternion -> yaw 0)."""
+    q = p.orientation
+    yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity")
+    return Pose2D(p.position.x, p.position.y, yaw or 0.0)
+
+
+def pose2d_to_pose(p: Pose2D) -> Pose:
+    """Pose message (z = 0) from a :class:`Pose2D`."""
+    return Pose(Point(p.x, p.y, 0.0), yaw_to_quaternion(p.yaw))
+
+
+def transform_to_pose2d(t: TransformStamped) -> Pose2D:
+    """Planar part of a TransformStamped (child frame in the parent frame)."""
+    q = t.transform.rotation
+    yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity")
+    return Pose2D(t.transform.translation.x, t.transform.translation.y, yaw or 0.0)
+
+
+def pose2d_to_transform(p: Pose2D, stamp, parent: str, child: str) -> TransformStamped:
+    """TransformStamped of ``child`` in ``parent``."""
+    t = TransformStamped()
+    t.header.stamp = stamp
+    t.header.frame_id = parent
+    t.child_frame_id = child
+    t.transform.translation.x, t.transform.translation.y = p.x, p.y
+    t.transform.rotation = yaw_to_quaternion(p.yaw)
+    return t
+
+
+def info_to_metadata(info: GridInfo, stamp) -> MapMetaData:
+    """MapMetaData from a :class:`GridInfo`."""
+    meta = MapMetaData()
+    meta.map_load_time = stamp
+    meta.resolution = info.resolution
+    meta.width, meta.height = info.width, info.height
+    meta.origin.position.x, meta.origin.position.y = info.origin_x, info.origin_y
+    meta.origin.orientation = yaw_to_quaternion(info.origin_yaw)
+    return meta
+
+
+def int8_array(data: np.ndarray) -> array.array:
+    """An int8[] message field value built without a per-cell Python loop.
+
+    genpy serialises int8[] with ``struct.pack(*data)``; an ``array('b')``
+    iterates as Python ints in -128..127 like the list it expects, and is
+    built from the raw bytes in one copy (``bytes`` would iterate as 0..255).
+    """
+    return array.array("b", np.ascontiguousarray(data, dtype=np.int8).tobytes())
+
+
+def occupancy_to_msg(occ: OccupancyMap, stamp, frame_id: str) -> OccupancyGrid:
+    """OccupancyGrid message of an :class:`OccupancyMap` (data row-major, row 0 = min y)."""
+    msg = OccupancyGrid()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.info = info_to_metadata(occ.info, stamp)
+    msg.data = int8_array(occ.data)
+    return msg
+
+
+def msg_to_occupancy(msg: OccupancyGrid) -> OccupancyMap:
+    """:class:`OccupancyMap` of an OccupancyGrid message (rejects inconsistent sizes)."""
+    info = msg.info
+    q = info.origin.orientation
+    yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity") or 0.0
+    # resolution is float32 on the wire: take its shortest decimal form (0.05, not 0.0500000007)
+    gi = GridInfo(float(str(np.float32(info.resolution))), int(info.width), int(info.height),
+                  float(info.origin.position.x), float(info.origin.position.y), yaw)
+    if isinstance(msg.data, (bytes, bytearray, array.array)):
+        data = np.frombuffer(msg.data, dtype=np.int8)
+    else:
+        data = np.asarray(msg.data, dtype=np.int8)
+    if data.size != gi.width * gi.height:
+        raise ValueError(f"OccupancyGrid has {data.size} cells, expected {gi.width} x {gi.height}")
+    return OccupancyMap(gi, data.reshape(gi.height, gi.width).copy())
+
+
+def path_to_msg(points: np.ndarray, yaws: np.ndarray | None, stamp, frame_id: str) -> Path:
+    """nav_msgs/Path through ``points`` (N, 2) m; yaws (N,) rad or along the path."""
+    msg = Path()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if yaws is None:
+        d = np.diff(pts, axis=0)
+        yaws = np.arctan2(d[:, 1], d[:, 0]) if len(d) else np.zeros(0)
+        yaws = np.append(yaws, yaws[-1] if len(yaws) else 0.0)
+    for (x, y), yaw in zip(pts, yaws, strict=True):
+        ps = PoseStamped()
+        ps.header = msg.header
+        ps.pose = pose2d_to_pose(Pose2D(float(x), float(y), float(yaw)))
+        msg.poses.append(ps)
+    return msg
