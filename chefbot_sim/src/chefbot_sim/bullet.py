@@ -225,6 +225,7 @@ class BulletSim:
 
     def joint(self, name: str) -> int:
         """Index of the robot joint ``name`` (BulletError names a missing one)."""
+        self._need_robot()
         try:
             return self._joints[name]
         except KeyError:

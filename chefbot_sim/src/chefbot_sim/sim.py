@@ -204,7 +204,7 @@ class Simulator:
         }
         self.enabled = {k: v > 0 for k, v in self.rates.items()}
         self.rng = np.random.default_rng(self.options.seed)
-        self.s = _State(due={k: 0.0 for k in SENSORS})
+        self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
         self._initial = self.bullet.save_state()
 
