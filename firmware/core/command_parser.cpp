@@ -118,24 +118,23 @@ RxEvent CommandParser::finish_line(Command& out) {
   if (overlong_) return reject(RxError::Overlong, out);
   if (bad_char_) return reject(RxError::BadChar, out);
 
-  // Up to five tokens: command, two arguments, checksum, and one more so
-  // that an extra field is detected rather than ignored.
-  Token tok[5];
+  // The first three tokens are all a valid line can use; the last two are
+  // tracked separately because the checksum is whatever token comes last.
+  Token tok[3] = {};
+  Token last = {0, 0};
+  Token before_last = {0, 0};
   size_t count = 0;
-  bool extra = false;
   size_t i = 0;
   while (i < len_) {
     while (i < len_ && is_blank(buf_[i])) ++i;
     if (i == len_) break;
     const size_t begin = i;
     while (i < len_ && !is_blank(buf_[i])) ++i;
-    if (count < 5) {
-      tok[count].begin = begin;
-      tok[count].end = i;
-      ++count;
-    } else {
-      extra = true;
-    }
+    const Token t = {begin, i};
+    if (count < 3) tok[count] = t;
+    before_last = last;
+    last = t;
+    ++count;
   }
   if (count == 0) {
     ++stats_.empty;
@@ -145,15 +144,13 @@ RxEvent CommandParser::finish_line(Command& out) {
   }
 
   bool had_checksum = false;
-  const Token& last = tok[count - 1];
   if (count > 1 && buf_[last.begin] == '*') {
-    const size_t n = last.end - last.begin;
-    if (extra || n != 3) return reject(RxError::BadChecksum, out);
+    if (last.end - last.begin != 3) return reject(RxError::BadChecksum, out);
     const int hi = hex_value(buf_[last.begin + 1]);
     const int lo = hex_value(buf_[last.begin + 2]);
     if (hi < 0 || lo < 0) return reject(RxError::BadChecksum, out);
     const uint8_t want = static_cast<uint8_t>((hi << 4) | lo);
-    if (crc8(buf_, tok[count - 2].end) != want) return reject(RxError::BadChecksum, out);
+    if (crc8(buf_, before_last.end) != want) return reject(RxError::BadChecksum, out);
     had_checksum = true;
     --count;
   }
@@ -164,7 +161,7 @@ RxEvent CommandParser::finish_line(Command& out) {
   if (cmd_len != 1 || (name != 's' && name != 'r')) return reject(RxError::UnknownCommand, out);
 
   if (name == 'r') {
-    if (count > 1 || extra) return reject(RxError::ExtraField, out);
+    if (count > 1) return reject(RxError::ExtraField, out);
     ++stats_.ok;
     out = Command();
     out.event = RxEvent::Reset;
@@ -173,7 +170,7 @@ RxEvent CommandParser::finish_line(Command& out) {
   }
 
   if (count < 3) return reject(RxError::MissingField, out);
-  if (count > 3 || extra) return reject(RxError::ExtraField, out);
+  if (count > 3) return reject(RxError::ExtraField, out);
   int32_t values[2] = {0, 0};
   for (int k = 0; k < 2; ++k) {
     const Token& t = tok[1 + k];

@@ -77,6 +77,9 @@ void Firmware::begin() {
   if (hal_.encoders) hal_.encoders->begin(*this);
   if (hal_.ultrasonic) hal_.ultrasonic->begin(*this);
 
+  // The leading '\n' ends whatever line the reset cut short on the PC side,
+  // so the hello line itself arrives intact (parsers skip blank lines).
+  if (hal_.serial->tx_space() >= 1) hal_.serial->write("\n", 1);
   send(format_hello(line_, cfg_, cfg_.tx_checksum));
   scheduler_ = PeriodicScheduler(1000000u / cfg_.status_rate_hz);
   scheduler_.start(now);

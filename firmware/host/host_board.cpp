@@ -41,6 +41,7 @@ void HostBoard::power_on() {
   tx_credit_ = 0;
   echo_pending_rise_ = echo_pending_fall_ = false;
   reset_pending_ = false;
+  power_on_triggers_ = 0;
   fw_->begin();
   for (int s = 0; s < 2; ++s) {
     fw_->encoder_prime(static_cast<Side>(s), (pins_[s] & 2u) != 0, (pins_[s] & 1u) != 0);
@@ -136,6 +137,7 @@ double HostBoard::wheel_duty(Side side) const {
 
 void HostBoard::trigger() {
   ++triggers_;
+  ++power_on_triggers_;
   last_trigger_us_ = now_;
   if (echo_us_ > 0) {
     echo_rise_at_ = now_ + 10u + kEchoDelayUs;

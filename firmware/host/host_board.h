@@ -65,6 +65,7 @@ class HostBoard final : Clock, SerialPort, MotorPins, UltrasonicPins, ImuSource,
   uint64_t elapsed_us() const { return elapsed_; }
   uint32_t resets() const { return resets_; }
   uint32_t triggers() const { return triggers_; }
+  uint32_t triggers_since_power_on() const { return power_on_triggers_; }
   uint32_t last_trigger_us() const { return last_trigger_us_; }
   uint32_t rx_overflow() const { return rx_overflow_; }
   uint32_t wire_overflow() const { return wire_overflow_; }
@@ -112,6 +113,7 @@ class HostBoard final : Clock, SerialPort, MotorPins, UltrasonicPins, ImuSource,
   uint32_t echo_rise_at_ = 0;
   uint32_t echo_fall_at_ = 0;
   uint32_t triggers_ = 0;
+  uint32_t power_on_triggers_ = 0;
   uint32_t last_trigger_us_ = 0;
   Quaternion imu_q_;
   bool imu_present_ = false;
