@@ -1,0 +1,267 @@
+"""Local controllers: follow a global path with a differential-drive robot (pure).
+
+Interface: ``LocalController`` with ``set_path``, ``reset`` and
+``compute(pose, t, costmap) -> Command``.  Implementation ``regulated_pure_pursuit``:
+
+* pure pursuit on a lookahead point (lookahead grows with speed) with the
+  speed regulated down for tight curvature, for high costmap cost around
+  the robot (near obstacles) and on the final approach (v <= sqrt(2 a d));
+* rotates in place first when the path leaves at a large angle;
+* every command is checked by forward-simulating its arc over a horizon on
+  the local costmap: a command whose arc enters an inscribed/lethal/unknown
+  cell is slowed down, and if even a crawl collides the robot stops and the
+  controller reports ``blocked`` (the navigator then replans);
+* final approach: once within ``xy_goal_tolerance`` (an internal, tighter
+  target is used to leave margin) it rotates in place to the goal yaw;
+  if the goal is close behind the robot it backs up instead of turning round;
+* acceleration limits on v and w between calls (dt from the given time),
+  except for a collision stop, which may brake at ``decel_lim_x``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from chefbot_navigation.costmap import INSCRIBED, Costmap
+from chefbot_navigation.geometry import Pose2D, wrap_angle
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Controller tunables (m, s, rad); names as move_base's local planners' where they match."""
+
+    max_vel_x: float = 0.35              # m/s
+    max_vel_theta: float = 2.5           # rad/s
+    min_in_place_vel_theta: float = 0.15  # rad/s, slowest useful rotation (static friction)
+    acc_lim_x: float = 0.8               # m/s^2
+    decel_lim_x: float = 1.6             # m/s^2, only used to stop for a collision
+    acc_lim_theta: float = 3.0           # rad/s^2
+    lookahead_time: float = 1.2          # s, lookahead = v * time, clamped to the two below
+    min_lookahead_dist: float = 0.3      # m
+    max_lookahead_dist: float = 0.7      # m
+    rotate_to_heading_angle: float = 0.7  # rad, rotate in place when the path leaves at a larger angle
+    regulated_min_radius: float = 0.6    # m, slow down on curves tighter than this radius
+    approach_gain: float = 0.8           # 1/s, v <= gain * distance to goal near the goal
+    min_approach_vel: float = 0.04       # m/s
+    rotation_gain: float = 2.0           # 1/s, w = gain * heading error (then limited)
+    near_obstacle_slowdown: float = 0.6  # fraction of speed removed at cost 252 under the robot
+    collision_horizon: float = 1.0       # s of forward simulation for the collision check
+    reverse_dist: float = 0.25           # m, back up to goals closer than this behind the robot
+    xy_goal_tolerance: float = 0.05      # m
+    yaw_goal_tolerance: float = 0.05     # rad
+    controller_frequency: float = 10.0   # Hz, nominal call rate (dt fallback)
+
+    def __post_init__(self) -> None:
+        for name in ("max_vel_x", "max_vel_theta", "acc_lim_x", "decel_lim_x", "acc_lim_theta",
+                     "lookahead_time", "min_lookahead_dist", "xy_goal_tolerance", "yaw_goal_tolerance",
+                     "controller_frequency", "collision_horizon", "rotation_gain", "approach_gain"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.max_lookahead_dist < self.min_lookahead_dist:
+            raise ValueError("max_lookahead_dist must be >= min_lookahead_dist")
+        if not 0.0 <= self.near_obstacle_slowdown < 1.0:
+            raise ValueError("near_obstacle_slowdown must be in [0, 1)")
+
+
+@dataclass
+class Command:
+    """Velocity command (m/s, rad/s) and the controller's status: ``following``, ``rotating``
+    (final yaw alignment), ``arrived`` (zero command) or ``blocked`` (zero translation)."""
+
+    v: float
+    w: float
+    status: str
+    detail: str = ""
+
+
+class LocalController(Protocol):
+    """What move_base needs from a local controller."""
+
+    def set_path(self, points: np.ndarray, goal_yaw: float | None) -> None:
+        """New global path (N, 2) m in the map frame; goal yaw (rad) or None to keep any heading."""
+        ...
+
+    def reset(self) -> None:
+        """Forget the path and the last command (robot assumed stopped)."""
+        ...
+
+    def compute(self, pose: Pose2D, t: float, costmap: Costmap) -> Command:
+        """Command for the robot at ``pose`` (map frame) at time ``t`` s."""
+        ...
+
+
+def _limit(value: float, prev: float, rate: float, dt: float) -> float:
+    return min(max(value, prev - rate * dt), prev + rate * dt)
+
+
+class RegulatedPurePursuit:
+    """Regulated pure pursuit with collision checking and final yaw alignment."""
+
+    def __init__(self, params: ControllerParams) -> None:
+        self.p = params
+        self.path = np.zeros((0, 2))
+        self.goal_yaw: float | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        self.v = 0.0
+        self.w = 0.0
+        self.t: float | None = None
+        self.index = 0
+        self.xy_reached = False
+
+    def set_path(self, points: np.ndarray, goal_yaw: float | None) -> None:
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        if len(pts) == 0:
+            raise ValueError("empty path")
+        same_goal = len(self.path) and np.allclose(self.path[-1], pts[-1]) and goal_yaw == self.goal_yaw
+        self.path = pts
+        self.goal_yaw = goal_yaw
+        self.index = 0
+        if not same_goal:
+            self.xy_reached = False
+
+    # --- helpers ---------------------------------------------------------------------------------
+    def _dt(self, t: float) -> float:
+        dt = 1.0 / self.p.controller_frequency if self.t is None else t - self.t
+        # a stalled or backwards clock must not unlock a huge velocity step
+        return min(max(dt, 0.0), 2.0 / self.p.controller_frequency)
+
+    def _lookahead_point(self, pose: Pose2D, dist: float) -> np.ndarray:
+        pts = self.path
+        # progress: nearest point within a window ahead of the last one (paths may loop back)
+        hi = min(len(pts), self.index + 200)
+        d = np.hypot(pts[self.index:hi, 0] - pose.x, pts[self.index:hi, 1] - pose.y)
+        self.index += int(np.argmin(d))
+        rest = pts[self.index:]
+        dr = np.hypot(rest[:, 0] - pose.x, rest[:, 1] - pose.y)
+        beyond = np.nonzero(dr >= dist)[0]
+        return rest[beyond[0]] if len(beyond) else rest[-1]
+
+    def arc_collides(self, pose: Pose2D, v: float, w: float, costmap: Costmap) -> bool:
+        """Does the arc of (v, w) over the horizon (plus stopping) enter a cell of cost >= 253?"""
+        if abs(v) < 1e-6:
+            return False   # rotating in place sweeps nothing new for a round footprint
+        horizon = self.p.collision_horizon + abs(v) / self.p.decel_lim_x
+        n = max(int(math.ceil(abs(v) * horizon / (0.5 * costmap.info.resolution))), 2)
+        ts = np.linspace(0.0, horizon, n + 1)[1:]
+        if abs(w) < 1e-6:
+            xs = pose.x + v * ts * math.cos(pose.yaw)
+            ys = pose.y + v * ts * math.sin(pose.yaw)
+        else:
+            th = pose.yaw + w * ts
+            xs = pose.x + v / w * (np.sin(th) - math.sin(pose.yaw))
+            ys = pose.y - v / w * (np.cos(th) - math.cos(pose.yaw))
+        cost = costmap.cost_at(xs, ys)
+        here = int(costmap.cost_at(pose.x, pose.y))
+        if here >= INSCRIBED:
+            # already inside the inscribed zone (e.g. after a bump): allow moves that leave it,
+            # i.e. whose cells never get worse than lethal and end up below the inscribed cost
+            return bool(np.any(cost > INSCRIBED) or cost[-1] >= INSCRIBED)
+        return bool(np.any(cost >= INSCRIBED))
+
+    def _emit(self, v: float, w: float, t: float, dt: float, status: str, detail: str = "",
+              emergency: bool = False) -> Command:
+        p = self.p
+        v = min(max(v, -p.max_vel_x), p.max_vel_x)
+        w = min(max(w, -p.max_vel_theta), p.max_vel_theta)
+        rate = p.decel_lim_x if emergency else p.acc_lim_x
+        v = _limit(v, self.v, rate, dt)
+        w = _limit(w, self.w, p.acc_lim_theta, dt)
+        self.v, self.w, self.t = v, w, t
+        return Command(v, w, status, detail)
+
+    def _rotate_to(self, err: float, t: float, dt: float, status: str) -> Command:
+        p = self.p
+        # decelerate to stop exactly at the target heading: w <= sqrt(2 a |err|)
+        mag = min(p.max_vel_theta, p.rotation_gain * abs(err), math.sqrt(2.0 * p.acc_lim_theta * abs(err)))
+        mag = max(mag, p.min_in_place_vel_theta)
+        return self._emit(0.0, math.copysign(mag, err), t, dt, status)
+
+    def _goal_sideways(self, pose: Pose2D) -> bool:
+        gx, gy = self.path[-1]
+        bearing = wrap_angle(math.atan2(gy - pose.y, gx - pose.x) - pose.yaw)
+        off_axis = min(abs(bearing), math.pi - abs(bearing))   # forwards or backwards
+        return off_axis > self.p.rotate_to_heading_angle
+
+    # --- main ----------------------------------------------------------------------------------
+    def compute(self, pose: Pose2D, t: float, costmap: Costmap) -> Command:
+        p = self.p
+        dt = self._dt(t)
+        if len(self.path) == 0:
+            return self._emit(0.0, 0.0, t, dt, "arrived", "no path")
+        gx, gy = self.path[-1]
+        dist_goal = math.hypot(gx - pose.x, gy - pose.y)
+        # latch xy like move_base's latch_xy_goal_tolerance, but release it if we drift off
+        if dist_goal <= 0.5 * p.xy_goal_tolerance:
+            self.xy_reached = True
+        elif dist_goal <= p.xy_goal_tolerance and self._goal_sideways(pose):
+            # inside the tolerance with the goal beside the robot: creeping closer would need a
+            # turn on the spot and a wiggle, so accept the position as it is
+            self.xy_reached = True
+        elif dist_goal > p.xy_goal_tolerance:
+            self.xy_reached = False
+        if self.xy_reached:
+            if self.goal_yaw is None:
+                return self._emit(0.0, 0.0, t, dt, "arrived")
+            err = wrap_angle(self.goal_yaw - pose.yaw)
+            # stop short of the tolerance: the robot keeps turning a little after the zero command
+            if abs(err) <= 0.5 * p.yaw_goal_tolerance:
+                return self._emit(0.0, 0.0, t, dt, "arrived")
+            return self._rotate_to(err, t, dt, "rotating")
+
+        lookahead = min(max(abs(self.v) * p.lookahead_time, p.min_lookahead_dist), p.max_lookahead_dist)
+        target = self._lookahead_point(pose, lookahead)
+        dx, dy = target[0] - pose.x, target[1] - pose.y
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        lx, ly = c * dx + s * dy, -s * dx + c * dy          # target in the robot frame
+        near_goal = dist_goal < p.max_lookahead_dist and np.allclose(target, self.path[-1])
+        reverse = near_goal and dist_goal < p.reverse_dist and lx < 0.0
+        if reverse:
+            lx, ly = -lx, -ly        # pursue the mirrored point, then drive backwards
+        alpha = math.atan2(ly, lx)
+        if abs(alpha) > p.rotate_to_heading_angle:
+            # rotating in place first keeps the robot on the path instead of swinging wide
+            if abs(self.v) > 1e-3:
+                return self._emit(0.0, self.w, t, dt, "following", "stopping to turn")
+            return self._rotate_to(alpha, t, dt, "following")
+        l2 = lx * lx + ly * ly
+        curvature = 2.0 * ly / l2 if l2 > 1e-9 else 0.0
+        v = p.max_vel_x
+        if abs(curvature) > 1e-9 and 1.0 / abs(curvature) < p.regulated_min_radius:
+            v *= (1.0 / abs(curvature)) / p.regulated_min_radius
+        here = float(costmap.cost_at(pose.x, pose.y, outside=0))
+        v *= 1.0 - p.near_obstacle_slowdown * min(here, 252.0) / 252.0
+        if near_goal:
+            v = min(v, max(p.approach_gain * dist_goal, p.min_approach_vel),
+                    math.sqrt(2.0 * p.acc_lim_x * dist_goal))
+        # turning-in-place part of the heading error limits v smoothly (no jerk at the threshold)
+        v *= max(0.0, math.cos(alpha))
+        v = max(v, p.min_approach_vel if near_goal else 0.5 * p.min_approach_vel)
+        if reverse:
+            v, curvature = -v, -curvature
+        w = v * curvature
+        if abs(w) > p.max_vel_theta:
+            v *= p.max_vel_theta / abs(w)
+            w = math.copysign(p.max_vel_theta, w)
+        # collision check of the command after the acceleration limits would apply
+        for scale in (1.0, 0.5, 0.25):
+            vv = _limit(v * scale, self.v, p.acc_lim_x, dt)
+            ww = _limit(w * scale, self.w, p.acc_lim_theta, dt)
+            if not self.arc_collides(pose, vv, ww, costmap):
+                return self._emit(v * scale, w * scale, t, dt, "following")
+        return self._emit(0.0, 0.0, t, dt, "blocked", "obstacle ahead on the path", emergency=True)
+
+
+CONTROLLERS = {"regulated_pure_pursuit": RegulatedPurePursuit}
+
+
+def make_controller(name: str, params: ControllerParams) -> LocalController:
+    """Controller implementation by name (``regulated_pure_pursuit``)."""
+    try:
+        return CONTROLLERS[name](params)
+    except KeyError:
+        raise ValueError(f"unknown controller {name!r}; choose one of {', '.join(sorted(CONTROLLERS))}") from None

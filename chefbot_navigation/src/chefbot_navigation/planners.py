@@ -1,0 +1,292 @@
+"""Global planners over a costmap (pure; scikit-image's MCP does the Dijkstra).
+
+Interface: ``GlobalPlanner.plan(costmap, start, goal) -> Plan`` (world
+coordinates in m), raising :class:`PlanningError` with a reason and a
+``kind`` the caller can act on.  Implementations, chosen by name with
+:func:`make_planner`:
+
+* ``dijkstra``: exact minimum-cost path on the 8-connected grid
+  (``skimage.graph.MCP_Geometric``: edge cost = step length x mean of the two
+  cell costs), then string-pulling and resampling;
+* ``hierarchical``: the same on a 4x coarser grid first (mean of the cell
+  costs, blocked cells counted at a high penalty), then exact Dijkstra at
+  full resolution inside a corridor around the coarse path (falls back to
+  ``dijkstra`` when the corridor has no path).  Identical to
+  ``dijkstra`` on maps up to ``full_search_cells`` cells.
+
+Cell traversal cost = neutral_cost + cost_factor * cost / 252 for costs below
+253 (like NavFn's COST_NEUTRAL + COST_FACTOR * cost); inscribed, lethal and
+(unless ``allow_unknown``) unknown cells are impassable.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import cv2
+import numpy as np
+from skimage.graph import MCP_Geometric
+
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap
+
+
+class PlanningError(RuntimeError):
+    """No plan; ``kind`` is one of start_off_map, goal_off_map, goal_in_obstacle,
+    goal_too_close, goal_unknown, no_path."""
+
+    def __init__(self, kind: str, reason: str) -> None:
+        super().__init__(reason)
+        self.kind = kind
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class PlannerParams:
+    """Planner tunables (names as NavFn/global_planner's where the meaning matches)."""
+
+    neutral_cost: float = 1.0          # cost of one free cell per cell length
+    cost_factor: float = 3.0           # extra cost of a cell of cost 252 (near an obstacle)
+    allow_unknown: bool = False        # plan through unknown cells (at the cost of a 252 cell)
+    smooth: bool = True                # string-pull the grid path
+    path_resolution: float = 0.05      # m, spacing of the published path
+    full_search_cells: int = 250_000   # hierarchical: plan exactly below this many cells
+    coarse_factor: int = 4             # hierarchical: cells per coarse cell (per axis)
+    corridor_margin: int = 3           # hierarchical: coarse cells around the coarse path
+
+    def __post_init__(self) -> None:
+        if not self.neutral_cost > 0.0:
+            raise ValueError(f"neutral_cost must be > 0, got {self.neutral_cost}")
+        if not self.cost_factor >= 0.0:
+            raise ValueError(f"cost_factor must be >= 0, got {self.cost_factor}")
+        if not self.path_resolution > 0.0:
+            raise ValueError(f"path_resolution must be > 0 m, got {self.path_resolution}")
+        if self.coarse_factor < 2 or self.corridor_margin < 1:
+            raise ValueError("coarse_factor must be >= 2 and corridor_margin >= 1")
+
+
+@dataclass
+class Plan:
+    """A planned path: ``points`` (N, 2) m in the costmap frame, ``cells`` the raw grid path
+    (M, 2) (row, col), ``cost`` the grid path's cost (cell-cost x cell lengths), ``seconds``
+    the planning time."""
+
+    points: np.ndarray
+    cells: np.ndarray
+    cost: float
+    seconds: float
+
+
+class GlobalPlanner(Protocol):
+    """What move_base needs from a global planner."""
+
+    def plan(self, costmap: Costmap, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
+        """Path from start to goal (m, costmap frame) or :class:`PlanningError`."""
+        ...
+
+
+def cell_costs(cost: np.ndarray, params: PlannerParams) -> np.ndarray:
+    """Traversal cost per cell (float64), ``inf`` where impassable."""
+    c = params.neutral_cost + params.cost_factor * np.minimum(cost, 252).astype(np.float64) / 252.0
+    blocked = cost >= INSCRIBED
+    if params.allow_unknown:
+        blocked &= cost != NO_INFORMATION
+    c[blocked] = np.inf
+    return c
+
+
+def path_cost(cells: np.ndarray, costs: np.ndarray) -> float:
+    """Cost of a grid path under MCP_Geometric's edge model (length x mean of cell costs)."""
+    cells = np.asarray(cells)
+    c = costs[cells[:, 0], cells[:, 1]]
+    steps = np.hypot(*np.diff(cells, axis=0).T)
+    return float(np.sum(steps * 0.5 * (c[:-1] + c[1:])))
+
+
+def _check_endpoints(costmap: Costmap, start: tuple[float, float], goal: tuple[float, float],
+                     params: PlannerParams) -> tuple[tuple[int, int], tuple[int, int]]:
+    info = costmap.info
+    sr, sc = (int(v) for v in info.world_to_cell(*start))
+    gr, gc = (int(v) for v in info.world_to_cell(*goal))
+    if not info.inside(np.array(sr), np.array(sc)):
+        raise PlanningError("start_off_map", f"robot position ({start[0]:.2f}, {start[1]:.2f}) is off the map")
+    if not info.inside(np.array(gr), np.array(gc)):
+        raise PlanningError("goal_off_map", f"goal ({goal[0]:.2f}, {goal[1]:.2f}) is off the map")
+    g = int(costmap.cost[gr, gc])
+    where = f"goal ({goal[0]:.2f}, {goal[1]:.2f})"
+    if g == LETHAL:
+        raise PlanningError("goal_in_obstacle", f"{where} is inside an obstacle")
+    if g == INSCRIBED:
+        raise PlanningError("goal_too_close", f"{where} is closer to an obstacle than the robot radius")
+    if g == NO_INFORMATION and not params.allow_unknown:
+        raise PlanningError("goal_unknown", f"{where} is in unknown space")
+    return (sr, sc), (gr, gc)
+
+
+def _free_start(costs: np.ndarray, cost: np.ndarray, start: tuple[int, int], radius_cells: int) -> None:
+    """Let the robot leave an inscribed area it already stands in (in place).
+
+    The robot's own cell and the inscribed (not lethal) cells within its
+    radius get a high finite cost, so a slightly mislocalised robot near a
+    wall still gets a plan that leads it out by the shortest way.
+    """
+    r, c = start
+    if np.isfinite(costs[r, c]):
+        return
+    r0, r1 = max(r - radius_cells, 0), min(r + radius_cells + 1, costs.shape[0])
+    c0, c1 = max(c - radius_cells, 0), min(c + radius_cells + 1, costs.shape[1])
+    rr, cc = np.mgrid[r0:r1, c0:c1]
+    disk = (rr - r) ** 2 + (cc - c) ** 2 <= radius_cells ** 2
+    sub = costs[r0:r1, c0:c1]
+    inscribed = disk & (cost[r0:r1, c0:c1] == INSCRIBED)
+    high = float(np.nanmax(np.where(np.isfinite(costs), costs, 0.0))) * 4.0 + 1.0
+    sub[inscribed] = high
+    costs[r, c] = high
+
+
+def _mcp_path(costs: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> np.ndarray | None:
+    """Exact 8-connected minimum-cost grid path (M, 2) or None when unreachable."""
+    mcp = MCP_Geometric(costs, fully_connected=True)
+    cum, _ = mcp.find_costs([start], [goal], find_all_ends=True)
+    if not np.isfinite(cum[goal]):
+        return None
+    return np.asarray(mcp.traceback(goal), dtype=np.int64)
+
+
+def _segment_ok(costs: np.ndarray, a: np.ndarray, b: np.ndarray, sub_cost: np.ndarray) -> np.ndarray:
+    """For segments from cell ``a`` to each cell in ``b`` (K, 2): straight line no worse than the
+    grid sub-path (``sub_cost`` (K,)) and never through an impassable cell."""
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])
+    n = int(np.ceil(length.max() * 2)) + 2
+    t = np.linspace(0.0, 1.0, n)
+    rr = np.rint(a[0] + d[:, 0, None] * t[None, :]).astype(np.int64)
+    cc = np.rint(a[1] + d[:, 1, None] * t[None, :]).astype(np.int64)
+    c = costs[rr, cc]
+    line_cost = c.mean(axis=1) * length
+    return np.isfinite(c).all(axis=1) & (line_cost <= sub_cost * 1.0 + 1e-9)
+
+
+def smooth_path(cells: np.ndarray, costs: np.ndarray, lookahead: int = 80) -> np.ndarray:
+    """String-pull a grid path: greedily replace runs of cells by straight segments that cross
+    only passable cells and cost no more than the run they replace.  Returns the kept cells."""
+    if len(cells) <= 2:
+        return cells
+    c = costs[cells[:, 0], cells[:, 1]]
+    steps = np.hypot(*np.diff(cells, axis=0).T) * 0.5 * (c[:-1] + c[1:])
+    cum = np.concatenate(([0.0], np.cumsum(steps)))
+    keep = [0]
+    i = 0
+    n = len(cells)
+    while i < n - 1:
+        js = np.arange(i + 1, min(i + lookahead, n - 1) + 1)
+        ok = _segment_ok(costs, cells[i].astype(float), cells[js].astype(float), cum[js] - cum[i])
+        ok[0] = True   # the neighbour is always reachable
+        j = int(js[np.nonzero(ok)[0].max()])
+        keep.append(j)
+        i = j
+    return cells[keep]
+
+
+def resample(points: np.ndarray, spacing: float) -> np.ndarray:
+    """Polyline resampled at ``spacing`` m (end points kept)."""
+    if len(points) < 2:
+        return points.copy()
+    seg = np.hypot(*np.diff(points, axis=0).T)
+    s = np.concatenate(([0.0], np.cumsum(seg)))
+    if s[-1] <= 0.0:
+        return points[[0, -1]].copy()
+    n = max(int(math.ceil(s[-1] / spacing)), 1)
+    q = np.linspace(0.0, s[-1], n + 1)
+    return np.column_stack((np.interp(q, s, points[:, 0]), np.interp(q, s, points[:, 1])))
+
+
+class DijkstraPlanner:
+    """Exact Dijkstra on the full grid (scikit-image MCP_Geometric)."""
+
+    def __init__(self, params: PlannerParams, robot_radius: float = 0.2) -> None:
+        self.params = params
+        self.robot_radius = robot_radius
+
+    def _prepare(self, costmap: Costmap, start, goal) -> tuple[np.ndarray, tuple[int, int], tuple[int, int]]:
+        s, g = _check_endpoints(costmap, start, goal, self.params)
+        costs = cell_costs(costmap.cost, self.params)
+        _free_start(costs, costmap.cost, s, int(math.ceil(self.robot_radius / costmap.info.resolution)))
+        return costs, s, g
+
+    def _grid_path(self, costs: np.ndarray, s: tuple[int, int], g: tuple[int, int]) -> np.ndarray | None:
+        return _mcp_path(costs, s, g)
+
+    def plan(self, costmap: Costmap, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
+        t0 = time.perf_counter()
+        costs, s, g = self._prepare(costmap, start, goal)
+        cells = self._grid_path(costs, s, g)
+        if cells is None:
+            raise PlanningError("no_path", f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
+                                f"({goal[0]:.2f}, {goal[1]:.2f}): it is unreachable")
+        total = path_cost(cells, costs)
+        kept = smooth_path(cells, costs) if self.params.smooth else cells
+        x, y = costmap.info.cell_to_world(kept[:, 0], kept[:, 1])
+        pts = np.column_stack((x, y))
+        # exact start and goal instead of their cell centres
+        pts[0] = start
+        pts[-1] = goal
+        pts = resample(pts, self.params.path_resolution)
+        return Plan(pts, cells, total, time.perf_counter() - t0)
+
+
+class HierarchicalPlanner(DijkstraPlanner):
+    """Coarse-to-fine Dijkstra: coarse path on a min-pooled grid, exact search in its corridor."""
+
+    def _grid_path(self, costs: np.ndarray, s: tuple[int, int], g: tuple[int, int]) -> np.ndarray | None:
+        p = self.params
+        if costs.size <= p.full_search_cells:
+            return _mcp_path(costs, s, g)
+        k = p.coarse_factor
+        h, w = costs.shape
+        H, W = -(-h // k), -(-w // k)
+        padded = np.full((H * k, W * k), np.inf)
+        padded[:h, :w] = costs
+        # mean pooling with blocked cells counted at a large penalty: a coarse cell with a wall in it
+        # stays passable (a door may be narrower than a coarse cell) but is avoided when an open
+        # way exists, so the corridor search below rarely needs the full-grid fallback
+        penalty = 100.0 * (p.neutral_cost + p.cost_factor)
+        blocks = np.where(np.isfinite(padded), padded, penalty).reshape(H, k, W, k)
+        coarse = blocks.mean(axis=(1, 3))
+        coarse[np.isinf(padded).reshape(H, k, W, k).all(axis=(1, 3))] = np.inf
+        cs, cg = (s[0] // k, s[1] // k), (g[0] // k, g[1] // k)
+        coarse[cs] = min(coarse[cs], costs[s])
+        cpath = _mcp_path(coarse, cs, cg)
+        if cpath is None:
+            return None   # a coarse cell is blocked only if all its cells are: no fine path either
+        m = p.corridor_margin
+        mask = np.zeros((H, W), dtype=bool)
+        mask[cpath[:, 0], cpath[:, 1]] = True
+        mask = _dilate(mask, m)
+        fine = np.repeat(np.repeat(mask, k, axis=0), k, axis=1)[:h, :w]
+        rows, cols = np.nonzero(fine.any(axis=1))[0], np.nonzero(fine.any(axis=0))[0]
+        r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        sub = np.where(fine[r0:r1, c0:c1], costs[r0:r1, c0:c1], np.inf)
+        path = _mcp_path(sub, (s[0] - r0, s[1] - c0), (g[0] - r0, g[1] - c0))
+        if path is None:
+            return _mcp_path(costs, s, g)
+        return path + np.array([r0, c0])
+
+
+def _dilate(mask: np.ndarray, m: int) -> np.ndarray:
+    """Binary dilation with a (2m+1)^2 square."""
+    kernel = np.ones((2 * m + 1, 2 * m + 1), dtype=np.uint8)
+    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
+
+
+PLANNERS = {"dijkstra": DijkstraPlanner, "hierarchical": HierarchicalPlanner}
+
+
+def make_planner(name: str, params: PlannerParams, robot_radius: float = 0.2) -> GlobalPlanner:
+    """Planner implementation by name (``dijkstra`` or ``hierarchical``)."""
+    try:
+        cls = PLANNERS[name]
+    except KeyError:
+        raise ValueError(f"unknown planner {name!r}; choose one of {', '.join(sorted(PLANNERS))}") from None
+    return cls(params, robot_radius)

@@ -1,0 +1,121 @@
+"""Regulated pure pursuit on a kinematic unicycle (pure Python, no ROS)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from chefbot_navigation.controller import ControllerParams, RegulatedPurePursuit, make_controller
+from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
+from chefbot_navigation.geometry import Pose2D, wrap_angle
+from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_navigation.planners import PlannerParams, make_planner
+
+DT = 0.1   # s, 10 Hz controller
+
+
+def open_room(size_m: float = 12.0) -> LayeredCostmap:
+    n = int(size_m / 0.05)
+    data = np.zeros((n, n), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    occ = OccupancyMap(GridInfo(0.05, n, n, -size_m / 2, -size_m / 2, 0.0), data)
+    return LayeredCostmap(occ, CostmapParams())
+
+
+def simulate(ctrl: RegulatedPurePursuit, layers: LayeredCostmap, pose: Pose2D, t_max: float = 120.0,
+             on_step=None) -> tuple[Pose2D, list, str]:
+    """Integrate a perfect unicycle under the controller's commands until it reports arrival."""
+    t = 0.0
+    cmds = []
+    status = ""
+    while t < t_max:
+        local = layers.window(pose.x, pose.y, 3.0, 3.0)
+        cmd = ctrl.compute(pose, t, local)
+        cmds.append((t, cmd.v, cmd.w, cmd.status))
+        status = cmd.status
+        if cmd.status == "arrived":
+            break
+        if on_step is not None:
+            on_step(t, pose)
+        # exact unicycle integration over DT
+        if abs(cmd.w) < 1e-9:
+            pose = Pose2D(pose.x + cmd.v * DT * math.cos(pose.yaw), pose.y + cmd.v * DT * math.sin(pose.yaw),
+                          pose.yaw)
+        else:
+            th = pose.yaw + cmd.w * DT
+            pose = Pose2D(pose.x + cmd.v / cmd.w * (math.sin(th) - math.sin(pose.yaw)),
+                          pose.y - cmd.v / cmd.w * (math.cos(th) - math.cos(pose.yaw)), wrap_angle(th))
+        t += DT
+    return pose, cmds, status
+
+
+def plan_path(layers: LayeredCostmap, start: Pose2D, goal: Pose2D) -> np.ndarray:
+    planner = make_planner("dijkstra", PlannerParams())
+    return planner.plan(layers.master(), (start.x, start.y), (goal.x, goal.y)).points
+
+
+STARTS = [Pose2D(x, y, yaw) for x, y in [(-3.0, -3.0), (3.5, -2.0), (-4.0, 3.0), (2.0, 2.6), (0.3, 0.2), (1.6, 0.0)]
+          for yaw in (0.0, 2.0, -2.5)]
+
+
+@pytest.mark.parametrize("start", STARTS, ids=[f"{s.x},{s.y},{s.yaw}" for s in STARTS])
+def test_converges_within_tolerance_and_limits(start: Pose2D) -> None:
+    layers = open_room()
+    p = ControllerParams()
+    ctrl = RegulatedPurePursuit(p)
+    goal = Pose2D(1.5, 0.5, 1.2)
+    ctrl.set_path(plan_path(layers, start, goal), goal.yaw)
+    end, cmds, status = simulate(ctrl, layers, start)
+    assert status == "arrived", f"no arrival after {cmds[-1][0]:.0f} s, pose {end}"
+    assert end.distance(goal) <= p.xy_goal_tolerance
+    assert abs(wrap_angle(end.yaw - goal.yaw)) <= p.yaw_goal_tolerance
+    v = np.array([c[1] for c in cmds])
+    w = np.array([c[2] for c in cmds])
+    assert np.all(np.abs(v) <= p.max_vel_x + 1e-9) and np.all(np.abs(w) <= p.max_vel_theta + 1e-9)
+    assert np.all(np.abs(np.diff(v)) <= p.acc_lim_x * DT + 1e-9)
+    assert np.all(np.abs(np.diff(w)) <= p.acc_lim_theta * DT + 1e-9)
+    assert v.max() > 0.3 or start.distance(goal) < 1.5, "never reached cruising speed"
+
+
+def test_goal_without_yaw_stops_at_position() -> None:
+    layers = open_room()
+    ctrl = make_controller("regulated_pure_pursuit", ControllerParams())
+    start, goal = Pose2D(-2.0, -1.0, 0.0), Pose2D(2.0, 1.0, 0.0)
+    ctrl.set_path(plan_path(layers, start, goal), None)
+    end, _, status = simulate(ctrl, layers, start)
+    assert status == "arrived" and end.distance(goal) <= 0.05
+
+
+def test_stops_for_obstacle_on_path() -> None:
+    layers = open_room()
+    p = ControllerParams()
+    ctrl = RegulatedPurePursuit(p)
+    start, goal = Pose2D(-4.0, 0.0, 0.0), Pose2D(4.0, 0.0, 0.0)
+    ctrl.set_path(plan_path(layers, start, goal), 0.0)
+    # a box appears on the straight path after the robot has started
+    ys = np.linspace(-0.3, 0.3, 13)
+
+    def drop_box(t: float, _pose: Pose2D) -> None:
+        if abs(t - 2.0) < 1e-6 or (2.0 <= t < 2.0 + DT):
+            layers.mark_points(np.full_like(ys, 0.0), ys)
+
+    end, cmds, status = simulate(ctrl, layers, start, t_max=25.0, on_step=drop_box)
+    assert status == "blocked"
+    # stopped in front of the box, never inside the inscribed radius
+    assert end.x < 0.0 - CostmapParams().robot_radius
+    assert end.x > -1.5, "stopped far too early"
+    assert cmds[-1][1] == 0.0
+
+
+def test_never_drives_into_obstacle_cells() -> None:
+    layers = open_room()
+    ctrl = RegulatedPurePursuit(ControllerParams())
+    start = Pose2D(-1.0, 0.0, 0.0)
+    # a path straight through a wall: the controller must refuse before the wall
+    layers.mark_points(np.full(41, 0.5), np.linspace(-1.0, 1.0, 41))
+    ctrl.set_path(np.column_stack((np.linspace(-1.0, 2.0, 61), np.zeros(61))), 0.0)
+    master = layers.master()
+    end, _, status = simulate(ctrl, layers, start, t_max=20.0)
+    assert status == "blocked"
+    assert master.cost_at(end.x, end.y) < 253
