@@ -1,0 +1,133 @@
+"""move_base decision logic on a kinematic unicycle (pure Python)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from chefbot_navigation.controller import ControllerParams, make_controller
+from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
+from chefbot_navigation.geometry import Pose2D, wrap_angle
+from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_navigation.navigator import Goal, Navigator, NavigatorParams
+from chefbot_navigation.planners import PlannerParams, make_planner
+
+DT = 0.1
+
+
+def room() -> OccupancyMap:
+    n = 200    # 10 m x 10 m, origin (-5, -5)
+    data = np.zeros((n, n), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    data[60:140, 98:102] = 100          # a wall x in [-0.1, 0.1], y in [-2, 2]
+    data[150:170, 150:170] = -1         # unknown patch around (3, 3)
+    return OccupancyMap(GridInfo(0.05, n, n, -5.0, -5.0, 0.0), data)
+
+
+def make_nav(**kw) -> tuple[Navigator, LayeredCostmap]:
+    layers = LayeredCostmap(room(), CostmapParams())
+    cp = ControllerParams()
+    nav = Navigator(NavigatorParams(**kw), cp, make_planner("dijkstra", PlannerParams()),
+                    make_controller("regulated_pure_pursuit", cp), layers)
+    return nav, layers
+
+
+def run(nav: Navigator, pose: Pose2D, t_max: float = 120.0, hook=None):
+    t = 0.0
+    res = None
+    while t < t_max:
+        if hook:
+            hook(t, pose)
+        res = nav.step(t, pose)
+        if res.outcome:
+            return res, pose, t
+        v, w = res.v, res.w
+        th = pose.yaw + w * DT
+        if abs(w) < 1e-9:
+            pose = Pose2D(pose.x + v * DT * math.cos(pose.yaw), pose.y + v * DT * math.sin(pose.yaw), pose.yaw)
+        else:
+            pose = Pose2D(pose.x + v / w * (math.sin(th) - math.sin(pose.yaw)),
+                          pose.y - v / w * (math.cos(th) - math.cos(pose.yaw)), wrap_angle(th))
+        t += DT
+    return res, pose, t
+
+
+def test_reaches_goal_around_wall() -> None:
+    nav, _ = make_nav()
+    nav.set_goal(Goal(2.0, 0.0, math.pi / 2), 0.0)
+    res, pose, t = run(nav, Pose2D(-2.0, 0.0, 0.0))
+    assert res.outcome == "succeeded", res.text
+    assert math.hypot(pose.x - 2.0, pose.y) <= 0.05
+    assert abs(wrap_angle(pose.yaw - math.pi / 2)) <= 0.05
+
+
+def test_goal_in_obstacle_aborts_at_once() -> None:
+    nav, _ = make_nav()
+    nav.set_goal(Goal(0.0, 0.0, 0.0), 0.0)
+    res, _, t = run(nav, Pose2D(-2.0, 0.0, 0.0))
+    assert res.outcome == "aborted" and "inside an obstacle" in res.text and t < 1.0
+
+
+def test_goal_in_unknown_and_off_map_abort() -> None:
+    for goal, words in [(Goal(3.0, 3.0, 0.0), "unknown"), (Goal(9.0, 0.0, 0.0), "off the map")]:
+        nav, _ = make_nav()
+        nav.set_goal(goal, 0.0)
+        res, _, t = run(nav, Pose2D(-2.0, 0.0, 0.0))
+        assert res.outcome == "aborted" and words in res.text and t < 1.0
+
+
+def test_unreachable_goal_aborts_within_5_s() -> None:
+    nav, layers = make_nav()
+    # enclose the goal with static walls
+    layers.static[96:104, 136:144] = 0
+    layers.static[90:110, 130] = 254
+    layers.static[90:110, 150] = 254
+    layers.static[90, 130:151] = 254
+    layers.static[110, 130:151] = 254
+    layers._master = None
+    nav.set_goal(Goal(2.0, 0.0, 0.0), 0.0)
+    res, _, t = run(nav, Pose2D(-2.0, 0.0, 0.0))
+    assert res.outcome == "aborted" and "unreachable" in res.text and t < 5.0
+
+
+def test_new_obstacle_on_path_triggers_replan_and_is_avoided() -> None:
+    nav, layers = make_nav()
+    nav.set_goal(Goal(-2.0, 3.5, 0.0), 0.0)
+    dropped = {}
+
+    def hook(t: float, pose: Pose2D) -> None:
+        # a box lands on the straight path once the robot is on its way
+        if t >= 1.0 and "done" not in dropped:
+            xs, ys = np.meshgrid(np.linspace(-2.4, -1.6, 17), np.linspace(1.6, 2.0, 9))
+            layers.mark_points(xs.ravel(), ys.ravel())
+            dropped["done"] = True
+        if "done" in dropped:
+            dropped["min"] = min(dropped.get("min", 9.0), float(layers.master().cost_at(pose.x, pose.y)))
+            assert layers.master().cost_at(pose.x, pose.y) < 253, f"robot entered an obstacle at {pose}"
+
+    res, pose, _ = run(nav, Pose2D(-2.0, -0.5, math.pi / 2), hook=hook)
+    assert res.outcome == "succeeded", res.text
+    assert math.hypot(pose.x + 2.0, pose.y - 3.5) <= 0.05
+
+
+def test_blocked_forever_recovers_then_aborts() -> None:
+    nav, layers = make_nav(controller_patience=2.0, planner_patience=1.0)
+    nav.set_goal(Goal(-2.0, 3.5, 0.0), 0.0)
+    box = np.meshgrid(np.linspace(-4.9, 4.9, 197), np.linspace(2.4, 2.8, 9))
+
+    def hook(t: float, pose: Pose2D) -> None:
+        # an obstacle line across the whole half-room that comes back after every clearing
+        layers.mark_points(box[0].ravel(), box[1].ravel())
+
+    res, _, t = run(nav, Pose2D(-2.0, -0.5, math.pi / 2), t_max=200.0, hook=hook)
+    assert res.outcome == "aborted"
+    assert "recovery behaviours exhausted" in res.text or "unreachable" in res.text
+
+
+def test_cancel_stops() -> None:
+    nav, _ = make_nav()
+    nav.set_goal(Goal(2.0, 0.0, 0.0), 0.0)
+    nav.step(0.0, Pose2D(-2.0, 0.0, 0.0))
+    nav.cancel()
+    res = nav.step(0.1, Pose2D(-2.0, 0.0, 0.0))
+    assert (res.v, res.w, res.state) == (0.0, 0.0, "idle")
