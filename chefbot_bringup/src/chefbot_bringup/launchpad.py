@@ -210,6 +210,11 @@ class LaunchpadCore:
         self.encoders = EncoderContinuity(max_ticks_per_s)
         self.stats = LinkStats()
         self.connected = False
+        # Set by the first checksummed line of a connection: from then on a line
+        # without the CRC token is refused. Otherwise a bit flip that hits the
+        # '*' would turn the token into a data field and the line would pass as
+        # an old (book) firmware line with no integrity check at all.
+        self.crc_required = False
         self._last_rx: float | None = None
         self._cmd = [0.0, 0.0]
         self._cmd_t = [float("-inf"), float("-inf")]
@@ -217,6 +222,7 @@ class LaunchpadCore:
     # ---- link
     def on_open(self, t: float) -> None:
         self.assembler.reset()
+        self.crc_required = False  # the board on the other end may be a different firmware
         self.connected = True
         self._last_rx = t
 
@@ -246,10 +252,14 @@ class LaunchpadCore:
                 continue
             try:
                 msg, had_crc = proto.parse_line(item)
+                if self.crc_required and not had_crc:
+                    raise proto.LineError("checksum", f"line without checksum from a board that sends them: "
+                                                      f"{item[:40]!r}")
             except proto.LineError as err:
                 self.stats.lines_bad[err.kind] += 1
                 out.append((err, None))
                 continue
+            self.crc_required |= had_crc
             self.stats.lines_ok += 1
             self.stats.crc_lines += had_crc
             self._last_rx = t

@@ -25,7 +25,7 @@ COMMAND_MAX = 1023
 
 _INT = re.compile(r"[+-]?[0-9]{1,10}\Z")
 _DEC = re.compile(r"[+-]?[0-9]{1,10}(\.[0-9]{1,9})?\Z")
-_CRC = re.compile(r"\*[0-9A-Fa-f]{2}\Z")
+_CRC = re.compile(r"\*[0-9A-F]{2}\Z")  # uppercase, as the firmware writes it
 
 
 class LineError(ValueError):

@@ -153,13 +153,33 @@ def test_core_counts_good_and_bad_lines_and_keeps_odometry() -> None:
     core = LaunchpadCore(max_ticks_per_s=11200)
     core.on_open(0.0)
     stream = (b"tial line\n" + with_crc("e\t10\t20") + b"e\tnan\t0\n" + b"\xff\xfe\n"
-              + with_crc("e\t30\t40") + b"s\t1.0\t2.0\trun\n")
+              + with_crc("e\t30\t40") + with_crc("s\t1.0\t2.0\trun"))
     results = core.on_bytes(stream, 0.1)
     enc = [extra for msg, extra in results if isinstance(msg, proto.Encoders)]
     assert [e[:2] for e in enc] == [(10, 20), (30, 40)]
-    assert core.stats.lines_ok == 3 and core.stats.crc_lines == 2
+    assert core.stats.lines_ok == 3 and core.stats.crc_lines == 3
     assert core.stats.lines_bad == {"partial": 1, "bad_number": 1, "binary": 1}
     assert core.stats.board_state == "run"
+
+
+def test_core_requires_checksums_once_the_board_sends_them() -> None:
+    core = LaunchpadCore(max_ticks_per_s=11200)
+    core.on_open(0.0)
+    core.on_bytes(b"\n" + with_crc("e\t1\t2"), 0.0)
+    core.on_bytes(b"e\t3\t4\n", 0.1)               # unchecked line on a checksummed link
+    assert core.stats.lines_ok == 1 and core.stats.lines_bad == {"checksum": 1}
+    core.on_close()
+    core.on_open(1.0)                                # maybe the book's firmware now
+    results = core.on_bytes(b"\ne\t3\t4\nu\t10\n", 1.1)
+    assert [type(m) for m, _ in results] == [proto.Encoders, proto.Ultrasonic]
+
+
+def test_lowercase_checksum_token_is_malformed() -> None:
+    line = with_crc("e\t1\t2")
+    with pytest.raises(proto.LineError) as e:
+        proto.parse_line(line[:-3] + line[-3:-1].lower() + b"\n" if line[-3:-1].lower() != line[-3:-1]
+                         else b"e\t1\t2\t*ab\n")
+    assert e.value.kind == "checksum"
 
 
 def test_core_silence_and_reconnect_counting() -> None:
