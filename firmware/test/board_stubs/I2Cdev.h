@@ -1,0 +1,3 @@
+// Compile-only stand-in for i2cdevlib's I2Cdev (see Energia.h).
+#pragma once
+#include <stdint.h>

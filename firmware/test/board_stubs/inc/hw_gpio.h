@@ -1,0 +1,4 @@
+#pragma once
+#define GPIO_O_LOCK 0x00000520
+#define GPIO_O_CR 0x00000524
+#define GPIO_LOCK_KEY 0x4C4F434B

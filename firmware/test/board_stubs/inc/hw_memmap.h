@@ -1,0 +1,3 @@
+#pragma once
+#define GPIO_PORTD_BASE 0x40007000
+#define WATCHDOG0_BASE 0x40000000

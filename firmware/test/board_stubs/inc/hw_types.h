@@ -1,0 +1,3 @@
+#pragma once
+#include <stdint.h>
+#define HWREG(x) (*((volatile uint32_t*)(x)))
