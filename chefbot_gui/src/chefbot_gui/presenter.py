@@ -267,8 +267,9 @@ class DeliveryPresenter:
 
     def remove(self, index: int) -> None:
         """Remove the pending queue item at ``index`` (position in ``ViewState.queue``)."""
-        if 0 <= index < len(self.queue):
-            del self.queue[index]
+        ordered = self._ordered_queue()
+        if 0 <= index < len(ordered):
+            self.queue.remove(ordered[index])
             self._changed()
 
     def set_order_mode(self, mode: OrderMode) -> None:

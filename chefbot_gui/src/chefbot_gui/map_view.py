@@ -1,0 +1,234 @@
+"""Live map widget: occupancy grid, global plan, table markers, robot.
+
+Qt only (no ROS): it is given plain data by the window and emits
+``tableClicked(key)`` when staff click near a table marker.  Coordinates go
+map frame (m) → grid image pixels (:class:`chefbot_gui.geometry.GridInfo`) →
+widget pixels (uniform scale + offset that fit the image in the widget).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from PyQt5.QtCore import QPointF, QRectF, Qt, pyqtSignal
+from PyQt5.QtGui import QBrush, QColor, QFont, QImage, QMouseEvent, QPainter, QPaintEvent, QPen, QPolygonF
+from PyQt5.QtWidgets import QWidget
+
+from chefbot_gui.geometry import GridInfo, Point
+
+ROBOT_RADIUS_M = 0.178  # the book's base collision cylinder
+CLICK_RADIUS_PX = 28.0
+CLICK_RADIUS_M = 0.9
+# Without a map yet, the view frames the tables with this margin (m) at this resolution (m/px).
+NO_MAP_MARGIN_M = 1.5
+NO_MAP_RESOLUTION = 0.05
+
+SELECTED = QColor("#2e7d32")
+QUEUED = QColor("#ef6c00")
+CURRENT = QColor("#1565c0")
+TABLE = QColor("#6d4c41")
+PLAN = QColor(21, 101, 192, 200)
+ROBOT = QColor("#c62828")
+
+
+@dataclass(frozen=True)
+class Marker:
+    """A named destination drawn on the map: map-frame position (m) and heading (rad)."""
+
+    key: str
+    label: str
+    x: float
+    y: float
+    yaw: float = 0.0
+
+
+class MapView(QWidget):
+    """Draws the restaurant map with tables, route and robot; click a table to select it."""
+
+    tableClicked = pyqtSignal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self._image: QImage | None = None
+        self._image_bytes = b""  # QImage does not copy: keep the buffer alive
+        self._grid: GridInfo | None = None
+        self._markers: list[Marker] = []
+        self._home: Marker | None = None
+        self._pose: tuple[float, float, float] | None = None
+        self._plan: tuple[Point, ...] = ()
+        self._selected: str | None = None
+        self._current: str | None = None
+        self._queued: tuple[str, ...] = ()
+        self.setMouseTracking(False)
+        self.setAutoFillBackground(True)
+
+    # ------------------------------------------------------------------ data in
+    def set_map(self, grey: bytes, grid: GridInfo) -> None:
+        """Show a grey-level image (top row first, ``grid.width`` bytes per row)."""
+        self._image_bytes = bytes(grey)
+        self._image = QImage(self._image_bytes, grid.width, grid.height, grid.width, QImage.Format_Grayscale8)
+        self._grid = grid
+        self.update()
+
+    def has_map(self) -> bool:
+        return self._image is not None
+
+    def set_markers(self, home: Marker, tables: Sequence[Marker]) -> None:
+        """The destinations to draw (from the shared tables YAML)."""
+        self._home = home
+        self._markers = list(tables)
+        self.update()
+
+    def set_robot(self, pose: tuple[float, float, float] | None) -> None:
+        """Robot pose (x m, y m, yaw rad) in the map frame, or ``None`` when unknown."""
+        self._pose = pose
+        self.update()
+
+    def set_route(self, plan: Sequence[Point], selected: str | None, current: str | None,
+                  queued: Sequence[str]) -> None:
+        """Global plan and which tables are selected, being driven to, and queued."""
+        self._plan = tuple(plan)
+        self._selected, self._current, self._queued = selected, current, tuple(queued)
+        self.update()
+
+    # ------------------------------------------------------------------ geometry
+    def _frame(self) -> GridInfo:
+        if self._grid is not None:
+            return self._grid
+        pts = [(m.x, m.y) for m in self._markers] + ([(self._home.x, self._home.y)] if self._home else [])
+        if self._pose:
+            pts.append(self._pose[:2])
+        if not pts:
+            pts = [(0.0, 0.0)]
+        x0 = min(p[0] for p in pts) - NO_MAP_MARGIN_M
+        y0 = min(p[1] for p in pts) - NO_MAP_MARGIN_M
+        w = max(p[0] for p in pts) + NO_MAP_MARGIN_M - x0
+        h = max(p[1] for p in pts) + NO_MAP_MARGIN_M - y0
+        return GridInfo(NO_MAP_RESOLUTION, max(1, round(w / NO_MAP_RESOLUTION)),
+                        max(1, round(h / NO_MAP_RESOLUTION)), x0, y0)
+
+    def _fit(self, grid: GridInfo) -> tuple[float, float, float]:
+        """Scale (widget px per image px) and offset that centre the image in the widget."""
+        s = min(self.width() / grid.width, self.height() / grid.height)
+        return s, (self.width() - s * grid.width) / 2.0, (self.height() - s * grid.height) / 2.0
+
+    def world_to_widget(self, x: float, y: float) -> QPointF:
+        """Widget pixel of a map-frame point (m)."""
+        grid = self._frame()
+        s, ox, oy = self._fit(grid)
+        u, v = grid.world_to_image(x, y)
+        return QPointF(ox + s * u, oy + s * v)
+
+    def widget_to_world(self, px: float, py: float) -> tuple[float, float]:
+        """Map-frame point (m) under a widget pixel."""
+        grid = self._frame()
+        s, ox, oy = self._fit(grid)
+        return grid.image_to_world((px - ox) / s, (py - oy) / s)
+
+    def metres_to_pixels(self, m: float) -> float:
+        grid = self._frame()
+        return m / grid.resolution * self._fit(grid)[0]
+
+    def table_at(self, px: float, py: float) -> str | None:
+        """Key of the table marker under (or near) a widget pixel, if any."""
+        best, best_d = None, math.inf
+        limit = max(CLICK_RADIUS_PX, self.metres_to_pixels(CLICK_RADIUS_M))
+        for m in self._markers:
+            p = self.world_to_widget(m.x, m.y)
+            d = math.hypot(p.x() - px, p.y() - py)
+            if d < best_d and d <= limit:
+                best, best_d = m.key, d
+        return best
+
+    # ------------------------------------------------------------------ Qt events
+    def mousePressEvent(self, event: QMouseEvent) -> None:
+        if event.button() == Qt.LeftButton:
+            key = self.table_at(event.pos().x(), event.pos().y())
+            if key is not None:
+                self.tableClicked.emit(key)
+        super().mousePressEvent(event)
+
+    def paintEvent(self, event: QPaintEvent) -> None:
+        qp = QPainter(self)
+        qp.setRenderHint(QPainter.Antialiasing)
+        qp.fillRect(self.rect(), QColor("#9e9e9e"))
+        grid = self._frame()
+        s, ox, oy = self._fit(grid)
+        if self._image is not None:
+            qp.drawImage(QRectF(ox, oy, s * grid.width, s * grid.height), self._image)
+        else:
+            qp.fillRect(QRectF(ox, oy, s * grid.width, s * grid.height), QColor("#f5f5f5"))
+            qp.setPen(QColor("#616161"))
+            qp.drawText(QRectF(ox, oy + 4, s * grid.width, 24), Qt.AlignHCenter, "waiting for the map…")
+        self._paint_plan(qp)
+        self._paint_markers(qp)
+        self._paint_robot(qp)
+        self._paint_scale(qp)
+        qp.end()
+
+    def _paint_plan(self, qp: QPainter) -> None:
+        if len(self._plan) < 2:
+            return
+        qp.setPen(QPen(PLAN, max(2.0, self.metres_to_pixels(0.06)), Qt.SolidLine, Qt.RoundCap, Qt.RoundJoin))
+        qp.setBrush(Qt.NoBrush)
+        qp.drawPolyline(QPolygonF([self.world_to_widget(x, y) for x, y in self._plan]))
+
+    def _paint_markers(self, qp: QPainter) -> None:
+        r = max(7.0, self.metres_to_pixels(0.25))
+        font = QFont(qp.font())
+        font.setBold(True)
+        font.setPointSizeF(max(7.0, min(11.0, r * 0.9)))
+        qp.setFont(font)
+        for m in self._markers:
+            colour = TABLE
+            if m.key in self._queued:
+                colour = QUEUED
+            if m.key == self._current:
+                colour = CURRENT
+            if m.key == self._selected:
+                colour = SELECTED
+            c = self.world_to_widget(m.x, m.y)
+            width = 3.0 if m.key == self._selected else 1.5
+            qp.setPen(QPen(QColor("white"), width))
+            qp.setBrush(QBrush(colour))
+            qp.drawEllipse(c, r, r)
+            number = m.label.split()[-1] if m.label.startswith("Table ") else m.label[:2]
+            qp.setPen(QColor("white"))
+            qp.drawText(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r), Qt.AlignCenter, number)
+            qp.setPen(colour.darker(130))
+            qp.drawText(QRectF(c.x() - 60, c.y() + r + 1, 120, 18), Qt.AlignHCenter | Qt.AlignTop, m.label)
+        if self._home is not None:
+            c = self.world_to_widget(self._home.x, self._home.y)
+            qp.setPen(QPen(QColor("#37474f"), 1.5))
+            qp.setBrush(QBrush(QColor("#cfd8dc")))
+            qp.drawRect(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r))
+            qp.setPen(QColor("#37474f"))
+            qp.drawText(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r), Qt.AlignCenter, "H")
+            qp.drawText(QRectF(c.x() - 60, c.y() + r + 1, 120, 18), Qt.AlignHCenter | Qt.AlignTop, "Home")
+
+    def _paint_robot(self, qp: QPainter) -> None:
+        if self._pose is None:
+            return
+        x, y, yaw = self._pose
+        c = self.world_to_widget(x, y)
+        r = max(6.0, self.metres_to_pixels(ROBOT_RADIUS_M))
+        nose = self.world_to_widget(x + 2.2 * ROBOT_RADIUS_M * math.cos(yaw),
+                                    y + 2.2 * ROBOT_RADIUS_M * math.sin(yaw))
+        dx, dy = nose.x() - c.x(), nose.y() - c.y()
+        n = math.hypot(dx, dy) or 1.0
+        nose = QPointF(c.x() + dx / n * max(n, 1.8 * r), c.y() + dy / n * max(n, 1.8 * r))
+        qp.setPen(QPen(QColor("white"), 2.0))
+        qp.setBrush(QBrush(ROBOT))
+        qp.drawEllipse(c, r, r)
+        qp.setPen(QPen(ROBOT, 3.0, Qt.SolidLine, Qt.RoundCap))
+        qp.drawLine(c, nose)
+
+    def _paint_scale(self, qp: QPainter) -> None:
+        px = self.metres_to_pixels(1.0)
+        if px < 4:
+            return
+        x0, y0 = 12.0, self.height() - 14.0
+        qp.setPen(QPen(QColor("black"), 2.0))
+        qp.drawLine(QPointF(x0, y0), QPointF(x0 + px, y0))
+        qp.drawText(QPointF(x0 + px + 4, y0 + 4), "1 m")
