@@ -68,6 +68,7 @@ class HostBoard final : Clock, SerialPort, MotorPins, UltrasonicPins, ImuSource,
   uint32_t triggers_since_power_on() const { return power_on_triggers_; }
   uint32_t last_trigger_us() const { return last_trigger_us_; }
   uint32_t rx_overflow() const { return rx_overflow_; }
+  size_t rx_pending() const { return rx_.size(); }
   uint32_t wire_overflow() const { return wire_overflow_; }
   uint64_t tx_bytes_total() const { return tx_total_; }
   size_t tx_queued() const { return uart_.size(); }
