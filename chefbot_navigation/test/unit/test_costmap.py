@@ -6,8 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from chefbot_navigation.costmap import (INSCRIBED, LETHAL, NO_INFORMATION, CostmapParams, LayeredCostmap,
-                                        inflate)
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, CostmapParams, LayeredCostmap, inflate
 from chefbot_navigation.geometry import Pose2D
 from chefbot_navigation.grid import GridInfo, OccupancyMap
 

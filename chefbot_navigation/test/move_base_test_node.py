@@ -1,0 +1,184 @@
+#!/usr/bin/env python3
+"""rostest node for move_base.test: this node IS the robot (kinematic_robot.py) and the client.
+
+All durations are measured in sim time (the robot owns /clock); wall-clock
+waits are only generous upper bounds for a loaded machine.
+"""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+import unittest
+
+import actionlib
+import rospy
+import rostest
+from actionlib_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped, Quaternion
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from nav_msgs.msg import Path
+from nav_msgs.srv import GetPlan, GetPlanRequest
+from std_srvs.srv import Empty
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from kinematic_robot import KinematicRobot  # noqa: E402
+
+from chefbot_navigation.geometry import Pose2D, quaternion_from_yaw, wrap_angle  # noqa: E402
+from chefbot_navigation.map_io import load_map  # noqa: E402
+
+PKG = "chefbot_navigation"
+WALL_TIMEOUT = 240.0    # s, upper bound for one goal on a loaded machine
+START = Pose2D(0.0, 0.0, 0.3)
+
+
+def wait_until(cond, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def make_goal(x: float, y: float, yaw: float | None = 0.0, frame: str = "map",
+              quat: tuple[float, float, float, float] | None = None) -> MoveBaseGoal:
+    g = MoveBaseGoal()
+    g.target_pose.header.frame_id = frame
+    g.target_pose.header.stamp = rospy.Time.now()
+    g.target_pose.pose.position.x, g.target_pose.pose.position.y = x, y
+    g.target_pose.pose.orientation = Quaternion(*(quat if quat is not None else quaternion_from_yaw(yaw)))
+    return g
+
+
+class MoveBaseTest(unittest.TestCase):
+    robot: KinematicRobot
+
+    @classmethod
+    def setUpClass(cls) -> None:
+        occ = load_map(rospy.get_param("~map_file"))
+        cls.robot = KinematicRobot(occ, START)
+        cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        assert cls.client.wait_for_server(rospy.Duration(60.0)), "no move_base action server"
+        cls.plans: list[Path] = []
+        rospy.Subscriber("move_base/global_plan", Path, cls.plans.append)
+
+    @classmethod
+    def tearDownClass(cls) -> None:
+        cls.robot.stop()
+
+    def setUp(self) -> None:
+        # every test starts with the robot at rest and no goal (no cancel_all_goals here: a cancel-all
+        # that reaches the server after the next goal would cancel that goal too)
+        if self.client.gh is not None and self.client.get_state() in (GoalStatus.PENDING, GoalStatus.ACTIVE):
+            self.client.cancel_goal()
+            self.client.wait_for_result(rospy.Duration(30.0))
+        wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "robot at rest")
+
+    def go(self, goal: MoveBaseGoal) -> int:
+        self.client.send_goal(goal)
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)), "no result")
+        return self.client.get_state()
+
+    def assert_at(self, x: float, y: float, yaw: float | None) -> None:
+        p = self.robot.pose
+        self.assertLessEqual(math.hypot(p.x - x, p.y - y), 0.05, f"final pose {p}")
+        if yaw is not None:
+            self.assertLessEqual(abs(wrap_angle(p.yaw - yaw)), 0.05, f"final pose {p}")
+
+    def test_a_goal_reached_around_box(self) -> None:
+        state = self.go(make_goal(4.0, 0.6, math.pi / 2))
+        self.assertEqual(state, GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        self.assert_at(4.0, 0.6, math.pi / 2)
+        self.assertTrue(self.plans, "no global plan published")
+        self.assertEqual(self.plans[-1].header.frame_id, "map")
+        # the command stream ended with one zero Twist
+        self.assertEqual(self.robot.cmd_log[-1][1:], (0.0, 0.0))
+
+    def test_b_book_client_script_unchanged(self) -> None:
+        script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "simple_navig_goals.py")
+        out = subprocess.run([sys.executable, script, "0.5", "0.0", "__name:=simple_navig_goals"],
+                             capture_output=True, text=True, timeout=WALL_TIMEOUT + 60, check=False)
+        self.assertEqual(out.returncode, 0, out.stdout + out.stderr)
+        self.assert_at(0.5, 0.0, 0.0)
+
+    def test_c_cancel_stops_within_half_a_second(self) -> None:
+        self.client.send_goal(make_goal(4.0, 2.0, 0.0))
+        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        t_cancel = self.robot.now
+        self.client.cancel_goal()
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(30.0)))
+        self.assertEqual(self.client.get_state(), GoalStatus.PREEMPTED)
+        wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "zero velocity")
+        zero_at = next(t for t, v, w in reversed(self.robot.cmd_log) if v == 0.0 and w == 0.0)
+        self.assertLessEqual(zero_at - t_cancel, 0.5, "zero cmd_vel later than 0.5 s (sim time) after cancel")
+        self.assertTrue(all(t <= zero_at for t, _, _ in self.robot.cmd_log), "commands after the zero Twist")
+
+    def test_d_new_goal_preempts_old(self) -> None:
+        first = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        self.assertTrue(first.wait_for_server(rospy.Duration(30.0)))
+        first.send_goal(make_goal(4.0, 2.0, 0.0))
+        wait_until(lambda: self.robot.velocity()[0] > 0.1, 60.0, "robot moving")
+        state = self.go(make_goal(0.0, 2.0, math.pi))
+        self.assertEqual(first.get_state(), GoalStatus.PREEMPTED)
+        self.assertEqual(state, GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        self.assert_at(0.0, 2.0, math.pi)
+
+    def test_e_goal_in_obstacle_aborts_with_reason(self) -> None:
+        t0 = self.robot.now
+        state = self.go(make_goal(2.0, 0.6, 0.0))
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn("obstacle", self.client.get_goal_status_text())
+        self.assertLess(self.robot.now - t0, 5.0)
+
+    def test_f_goal_in_unknown_and_off_map_abort(self) -> None:
+        for (x, y), word in [((4.5, 2.7), "unknown"), ((20.0, 0.0), "off the map")]:
+            state = self.go(make_goal(x, y, 0.0))
+            self.assertEqual(state, GoalStatus.ABORTED)
+            self.assertIn(word, self.client.get_goal_status_text())
+
+    def test_g_zero_quaternion_means_yaw_zero(self) -> None:
+        state = self.go(make_goal(1.0, 2.0, quat=(0.0, 0.0, 0.0, 0.0)))
+        self.assertEqual(state, GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        self.assert_at(1.0, 2.0, 0.0)
+
+    def test_h_nan_quaternion_rejected(self) -> None:
+        state = self.go(make_goal(1.0, 2.0, quat=(0.0, 0.0, float("nan"), 1.0)))
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn("orientation", self.client.get_goal_status_text())
+
+    def test_i_goal_in_robot_frame_is_transformed(self) -> None:
+        p = self.robot.pose
+        state = self.go(make_goal(0.5, 0.0, 0.0, frame="base_footprint",
+                                  quat=(0.0, 0.0, 2.0 * math.sin(0.25), 2.0 * math.cos(0.25))))  # not normalised
+        self.assertEqual(state, GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        target = p.compose(Pose2D(0.5, 0.0, 0.5))
+        self.assert_at(target.x, target.y, target.yaw)
+
+    def test_j_make_plan_and_clear_costmaps_services(self) -> None:
+        rospy.wait_for_service("move_base/make_plan", 30.0)
+        req = GetPlanRequest()
+        req.start = PoseStamped()
+        req.goal = make_goal(4.0, 0.6).target_pose
+        resp = rospy.ServiceProxy("move_base/make_plan", GetPlan)(req)
+        self.assertGreater(len(resp.plan.poses), 10)
+        end = resp.plan.poses[-1].pose.position
+        self.assertAlmostEqual(end.x, 4.0, places=3)
+        rospy.wait_for_service("move_base/clear_costmaps", 30.0)
+        rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
+
+    def test_k_obstacle_on_path_is_avoided(self) -> None:
+        # go to the far corner, then drop a box on the straight way there
+        self.go(make_goal(0.0, 0.0, 0.0))
+        self.client.send_goal(make_goal(4.3, 0.0, 0.0))
+        wait_until(lambda: self.robot.pose.x > 0.4, 60.0, "robot under way")
+        self.robot.add_box(2.9, -0.6, 3.2, 0.15)
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
+        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        self.assert_at(4.3, 0.0, 0.0)
+
+
+if __name__ == "__main__":
+    rospy.init_node("move_base_test")
+    rostest.rosrun(PKG, "move_base", MoveBaseTest)
