@@ -196,8 +196,7 @@ class MapView(QWidget):
             number = m.label.split()[-1] if m.label.startswith("Table ") else m.label[:2]
             qp.setPen(QColor("white"))
             qp.drawText(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r), Qt.AlignCenter, number)
-            qp.setPen(colour.darker(130))
-            qp.drawText(QRectF(c.x() - 60, c.y() + r + 1, 120, 18), Qt.AlignHCenter | Qt.AlignTop, m.label)
+            self._paint_label(qp, c, r, m.label, colour.darker(130))
         if self._home is not None:
             c = self.world_to_widget(self._home.x, self._home.y)
             qp.setPen(QPen(QColor("#37474f"), 1.5))
@@ -205,7 +204,18 @@ class MapView(QWidget):
             qp.drawRect(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r))
             qp.setPen(QColor("#37474f"))
             qp.drawText(QRectF(c.x() - r, c.y() - r, 2 * r, 2 * r), Qt.AlignCenter, "H")
-            qp.drawText(QRectF(c.x() - 60, c.y() + r + 1, 120, 18), Qt.AlignHCenter | Qt.AlignTop, "Home")
+            self._paint_label(qp, c, r, "Home", QColor("#37474f"))
+
+    @staticmethod
+    def _paint_label(qp: QPainter, c: QPointF, r: float, text: str, colour: QColor) -> None:
+        """Name under a marker on a light plate, readable over walls and tables."""
+        box = qp.fontMetrics().boundingRect(text)
+        rect = QRectF(c.x() - box.width() / 2 - 3, c.y() + r + 2, box.width() + 6, box.height() + 2)
+        qp.setPen(Qt.NoPen)
+        qp.setBrush(QColor(255, 255, 255, 210))
+        qp.drawRoundedRect(rect, 3, 3)
+        qp.setPen(colour)
+        qp.drawText(rect, Qt.AlignCenter, text)
 
     def _paint_robot(self, qp: QPainter) -> None:
         if self._pose is None:

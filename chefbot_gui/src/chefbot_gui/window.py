@@ -60,6 +60,9 @@ class RobotGuiWindow(QWidget):
 
         self.tableList.setFlow(QListView.LeftToRight)
         self.tableList.setWrapping(True)
+        # with keyboard focus at start-up Qt would highlight Table 1 as "current",
+        # which staff read as selected; the list takes focus when clicked
+        self.tableList.setFocusPolicy(Qt.ClickFocus)
         for dest in presenter.tables:
             item = QListWidgetItem(dest.label)
             item.setData(Qt.UserRole, dest.key)
