@@ -133,7 +133,7 @@ class MoveBaseTest(unittest.TestCase):
         self.assertLess(self.robot.now - t0, 5.0)
 
     def test_f_goal_in_unknown_and_off_map_abort(self) -> None:
-        for (x, y), word in [((4.5, 2.7), "unknown"), ((20.0, 0.0), "off the map")]:
+        for (x, y), word in [((4.55, 2.5), "unknown"), ((20.0, 0.0), "off the map")]:
             state = self.go(make_goal(x, y, 0.0))
             self.assertEqual(state, GoalStatus.ABORTED)
             self.assertIn(word, self.client.get_goal_status_text())
