@@ -1,0 +1,182 @@
+"""A LaunchPad on a pseudo-terminal, running our own firmware core (host library).
+
+``launchpad_node`` cannot tell it from the real board: it opens the pty's slave
+path (or a fixed symlink to it), and the bytes go through the firmware's own
+parser, watchdog, encoder decoder, scheduler and line formatter.  The wheels are
+a first-order DC-motor model (80 RPM free speed at full duty), or are driven by
+the caller (the simulator feeds its physics' wheel angles instead).
+
+Used by the bringup rostests, by ``rosrun chefbot_bringup virtual_launchpad``
+(try ``robot_standalone.launch`` without hardware) and by the simulator's
+firmware-in-the-loop mode.  No rospy here.
+"""
+from __future__ import annotations
+
+import errno
+import math
+import os
+import pty
+import tty
+from dataclasses import dataclass
+from pathlib import Path
+
+from chefbot_firmware.host import LEFT, RIGHT, FirmwareHost
+
+EDGES_PER_REV = 8400            # quadrature edges per wheel revolution (64 CPR x 131.25 gear, 4X)
+FREE_SPEED_RAD_S = 80 * 2 * math.pi / 60  # Pololu 37D 80 RPM at 12 V, full duty
+
+
+class PtyPort:
+    """The board's end (master) of a pseudo-terminal; the driver opens ``path`` or ``link``.
+
+    The slave side stays open here too, so the pty lives until ``close()`` even
+    while no driver has it open (reads would otherwise fail with EIO).
+    """
+
+    def __init__(self, link: str | os.PathLike | None = None) -> None:
+        self.master, self._slave = pty.openpty()
+        tty.setraw(self._slave)          # no echo, no line discipline: bytes as on a UART
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self._slave)
+        self.link = Path(link) if link else None
+        self.dropped = 0                 # bytes lost because nobody drained the pty
+        if self.link is not None:
+            tmp = self.link.with_name(self.link.name + f".tmp{os.getpid()}")
+            tmp.unlink(missing_ok=True)
+            tmp.symlink_to(self.path)
+            os.replace(tmp, self.link)   # atomic: a reconnecting driver never sees a half state
+
+    def read(self) -> bytes:
+        """Whatever the driver wrote since the last call (never blocks; nothing once unplugged)."""
+        if self.master < 0:
+            return b""
+        chunks = []
+        while True:
+            try:
+                data = os.read(self.master, 4096)
+            except BlockingIOError:
+                break
+            except OSError as exc:
+                if exc.errno == errno.EIO:   # no reader/writer on the slave side right now
+                    break
+                raise
+            if not data:
+                break
+            chunks.append(data)
+        return b"".join(chunks)
+
+    def write(self, data: bytes) -> None:
+        """Send bytes to the driver; what does not fit in the pty buffer, or is sent while
+        unplugged, is dropped (as a UART would)."""
+        if self.master < 0:
+            self.dropped += len(data)
+            return
+        view = memoryview(data)
+        while view:
+            try:
+                n = os.write(self.master, view)
+            except (BlockingIOError, OSError):
+                self.dropped += len(view)
+                return
+            view = view[n:]
+
+    def close(self) -> None:
+        """Unplug: the driver sees its port fail; the symlink goes away."""
+        if self.link is not None and self.link.is_symlink() and os.readlink(self.link) == self.path:
+            self.link.unlink()
+        for fd in (self.master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self.master = self._slave = -1
+
+    def __enter__(self) -> PtyPort:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass
+class MotorModel:
+    """First-order DC gear motor: wheel speed follows duty x free speed with time constant tau."""
+
+    free_speed: float = FREE_SPEED_RAD_S   # rad/s at full duty
+    tau: float = 0.08                      # s, mechanical time constant
+    speed: float = 0.0                     # rad/s, robot-forward positive
+    angle: float = 0.0                     # rad, accumulated
+
+    def step(self, duty: float, dt: float) -> float:
+        """Advance dt seconds at the given signed duty (-1..1); returns the angle change (rad)."""
+        target = max(-1.0, min(1.0, duty)) * self.free_speed
+        a = 1.0 - math.exp(-dt / self.tau) if self.tau > 0 else 1.0
+        old = self.speed
+        self.speed += (target - self.speed) * a
+        dangle = 0.5 * (old + self.speed) * dt
+        self.angle += dangle
+        return dangle
+
+
+class VirtualBoard:
+    """Firmware core + pty + (optionally) modelled wheels, stepped by the caller.
+
+    ``step(dt)`` moves the board's clock by dt seconds: bytes from the driver go
+    into the firmware, the motor model turns the wheels (unless ``model_wheels``
+    is False and the caller feeds ``turn_wheel``), encoder edges go back into the
+    firmware's decoder, and the firmware's output goes to the driver.
+    """
+
+    def __init__(self, link: str | os.PathLike | None = None, model_wheels: bool = True,
+                 config: dict[str, int] | None = None) -> None:
+        self.fw = FirmwareHost(config)
+        self.fw.power_on()
+        self.port = PtyPort(link)
+        self.model_wheels = model_wheels
+        self.motors = (MotorModel(), MotorModel())
+        self._edge_rest = [0.0, 0.0]     # fractional edges carried between steps
+        self.fw.set_ultrasonic_cm(None)
+        self.fw.set_battery_volts(12.4)
+        self.fw.set_imu_quaternion(0.0, 0.0, 0.0, 1.0)
+
+    @property
+    def path(self) -> str:
+        return self.port.path
+
+    def turn_wheel(self, side: int, dangle: float) -> None:
+        """Turn one wheel by dangle rad (robot-forward positive): encoder edges into the firmware."""
+        edges = dangle / (2 * math.pi) * EDGES_PER_REV + self._edge_rest[side]
+        whole = math.trunc(edges)
+        self._edge_rest[side] = edges - whole
+        if whole:
+            self.fw.wheel_advance(side, whole)
+
+    def step(self, dt: float) -> None:
+        if dt <= 0:
+            return
+        data = self.port.read()
+        if data:
+            self.fw.feed(data)
+        if self.model_wheels:
+            for side in (LEFT, RIGHT):
+                self.turn_wheel(side, self.motors[side].step(self.fw.wheel_duty(side), dt))
+        self.fw.advance(max(1, round(dt * 1e6)))
+        out = self.fw.read_tx()
+        if out:
+            self.port.write(out)
+
+    def reconnect(self, link: str | os.PathLike | None = None) -> None:
+        """Unplug and plug back in: a new pty (new path), the same symlink."""
+        link = link or self.port.link
+        self.port.close()
+        self.port = PtyPort(link)
+
+    def close(self) -> None:
+        self.port.close()
+        self.fw.close()
+
+    def __enter__(self) -> VirtualBoard:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
