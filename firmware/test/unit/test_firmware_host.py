@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from chefbot_firmware import FirmwareHost, MotorOutput, library_path
 from chefbot_firmware.host import LEFT, RIGHT
 from chefbot_firmware.protocol_vectors import load_vectors
