@@ -1,17 +1,23 @@
 #!/usr/bin/env python3
-"""`make demo`: the main job, headless when there is no display.
+"""`make demo`: the simulated hotel delivery, headless.
 
-Current stage (foundation): bring up the ChefBot model — xacro → robot_description,
-robot_state_publisher and joint_state_publisher — on a private ROS master, wait
-until every frame of the robot is on /tf + /tf_static, print the TF tree and the
-key dimensions read back from the model, and shut everything down.
-(Later stages replace this with the simulated hotel delivery.)
+Starts a private ROS master and `chefbot_sim navigation_demo.launch` (pybullet
+hotel + map server + localization + move_base), prints the robot's TF tree,
+then a real move_base action client delivers to all nine tables of the shared
+tables YAML and returns home, printing one line per leg (path length, time,
+final ground-truth error) and a final ``delivered N/9 tables in T s``.
 
-Exit code 0 only when the whole tree came up; no process is left behind,
-Ctrl-C included.
+A table counts as delivered when move_base reports SUCCEEDED and the
+simulator's ground truth is within 0.05 m / 0.05 rad of the table pose.
+Exit code 0 only when all nine were delivered; nothing is left running,
+Ctrl-C included.  Results also go to build/demo/delivery.json.
+
+Environment: CHEFBOT_DEMO_RTF (sim speed cap, default 1.0; 0 = as fast as
+the machine goes), CHEFBOT_DEMO_TABLES (comma-separated subset, e.g. table_1,table_5).
 """
 from __future__ import annotations
 
+import json
 import os
 import sys
 import time
@@ -22,12 +28,10 @@ from procs import ProcessGroup, free_port
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
-REQUIRED_FRAMES = [
-    "base_footprint", "base_link", "wheel_left_link", "wheel_right_link",
-    "camera_link", "camera_depth_frame", "camera_depth_optical_frame",
-    "camera_rgb_frame", "camera_rgb_optical_frame", "gyro_link", "ultrasonic_link",
-]
-TIMEOUT_S = 60.0
+TABLES_FILE = ROOT / "chefbot_sim" / "worlds" / "hotel_tables.yaml"
+XY_TOL, YAW_TOL = 0.05, 0.05          # m, rad: the acceptance tolerance against ground truth
+STARTUP_TIMEOUT_S = 180.0             # wall time for the sim + navigation to come up
+LEG_TIMEOUT_S = 240.0                 # wall time per leg before giving up
 
 
 def say(msg: str) -> None:
@@ -35,11 +39,10 @@ def say(msg: str) -> None:
 
 
 def print_tree(parents: dict[str, str]) -> None:
-    """Print frames as an indented tree from their parent map."""
+    """Print frames as an indented tree from their child → parent map."""
     children: dict[str, list[str]] = {}
     for child, parent in parents.items():
         children.setdefault(parent, []).append(child)
-    roots = sorted({p for p in parents.values() if p not in parents})
 
     def walk(frame: str, prefix: str, last: bool, top: bool) -> None:
         print(("" if top else prefix + ("└── " if last else "├── ")) + frame)
@@ -47,60 +50,104 @@ def print_tree(parents: dict[str, str]) -> None:
         for i, kid in enumerate(kids):
             walk(kid, prefix + ("" if top else ("    " if last else "│   ")), i == len(kids) - 1, False)
 
-    for r in roots:
-        walk(r, "", True, True)
+    for root in sorted({p for p in parents.values() if p not in parents}):
+        walk(root, "", True, True)
+
+
+def tf_tree(timeout: float) -> dict[str, str]:
+    """child → parent of every frame on /tf and /tf_static, once map..wheels are all there."""
+    import rospy
+    import tf2_ros
+    import yaml
+
+    buf = tf2_ros.Buffer()
+    listener = tf2_ros.TransformListener(buf)
+    need = {"odom", "base_footprint", "base_link", "wheel_left_link", "wheel_right_link",
+            "camera_depth_optical_frame", "ultrasonic_link"}
+    deadline = time.monotonic() + timeout
+    parents: dict[str, str] = {}
+    while time.monotonic() < deadline and not rospy.is_shutdown():
+        parents = {f: d["parent"] for f, d in (yaml.safe_load(buf.all_frames_as_yaml()) or {}).items()}
+        if need <= set(parents) | {"map"} and "map" in parents.values():
+            break
+        time.sleep(0.2)
+    listener.unregister()
+    return parents
 
 
 def main() -> int:
+    rtf = os.environ.get("CHEFBOT_DEMO_RTF", "1.0")
     port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOME=str(LOG_DIR / "ros_home"))
-    os.environ.update(ROS_MASTER_URI=env["ROS_MASTER_URI"], ROS_HOME=env["ROS_HOME"])
-    cmd = ["roslaunch", "-p", str(port), "--wait", "chefbot_description", "view_model.launch", "rviz:=false"]
+    uri = f"http://127.0.0.1:{port}"
+    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(LOG_DIR / "ros_home"))
+    os.environ.update(ROS_MASTER_URI=uri, ROS_HOME=env["ROS_HOME"])
     log = LOG_DIR / "roslaunch.log"
-    say(f"starting the robot model on a private master (port {port}); log: {log.relative_to(ROOT)}")
+    say(f"starting the simulated hotel with navigation (master {uri}, real-time factor {rtf}); "
+        f"log: {log.relative_to(ROOT)}")
+    say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
+    launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "navigation_demo.launch", f"real_time_factor:={rtf}"]
     with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
-            ProcessGroup(cmd, env=env, log=log) as launch:
+            ProcessGroup(launch_cmd, env=env, log=log) as launch:
         import rosgraph
         import rospy
-        import tf2_ros
-        import yaml
 
-        deadline = time.monotonic() + TIMEOUT_S
+        from chefbot_sim.world import load_tables
+        sys.path.insert(0, str(ROOT / "tools"))
+        from delivery import DeliveryClient
+
+        tables = load_tables(TABLES_FILE)
+        names = [n for n in tables if n.startswith("table_")]
+        subset = os.environ.get("CHEFBOT_DEMO_TABLES")
+        if subset:
+            names = [n.strip() for n in subset.split(",") if n.strip()]
+            unknown = [n for n in names if n not in tables]
+            if unknown:
+                say(f"ERROR: CHEFBOT_DEMO_TABLES names unknown tables {unknown}; known: {sorted(tables)}")
+                return 2
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while not rosgraph.Master("/chefbot_demo").is_online():
             if time.monotonic() > deadline:
                 say("ERROR: the ROS master did not come up")
                 return 1
             time.sleep(0.1)
         rospy.init_node("chefbot_demo", anonymous=True, disable_signals=True)
-        buf = tf2_ros.Buffer()
-        tf2_ros.TransformListener(buf)
-        parents: dict[str, str] = {}
-        say("waiting for the robot's frames on /tf and /tf_static ...")
-        while time.monotonic() < deadline:
+        client = DeliveryClient()
+        say("waiting for the simulator and move_base ...")
+        try:
+            client.wait_ready(max(1.0, deadline - time.monotonic()))
+        except (TimeoutError, rospy.ROSException) as exc:
+            say(f"ERROR: {exc}; see {log}")
             if launch.poll() is not None:
-                say(f"ERROR: roslaunch exited ({launch.poll()}); see {log}")
                 print(log.read_text(errors="replace")[-3000:])
-                return 1
-            frames = yaml.safe_load(buf.all_frames_as_yaml()) or {}
-            parents = {f: d["parent"] for f, d in frames.items()}
-            if all(f in parents or f == "base_footprint" for f in REQUIRED_FRAMES) and parents:
-                break
-            time.sleep(0.2)
-        else:
-            missing = [f for f in REQUIRED_FRAMES if f not in parents and f != "base_footprint"]
-            say(f"ERROR: frames missing after {TIMEOUT_S:.0f} s: {missing}")
             return 1
+        parents = tf_tree(timeout=30.0)
         say(f"TF tree ({len(parents) + 1} frames):")
         print_tree(parents)
-        from chefbot_description import model
-        robot = model.parse_urdf(rospy.get_param("robot_description"))
-        wheels = model.wheel_geometry(robot)
-        say(f"model read back from robot_description: {len(robot.links)} links, "
-            f"{model.total_mass(robot):.2f} kg, wheel radius {wheels.radius:.3f} m, "
-            f"wheel separation {wheels.separation:.3f} m")
+
+        say(f"delivering to {len(names)} tables, then home ({TABLES_FILE.relative_to(ROOT)})")
+        legs = []
+        t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
+        for name in [*names, "home"]:
+            if launch.poll() is not None:
+                say(f"ERROR: the simulation stopped (roslaunch exit {launch.poll()}); see {log}")
+                break
+            pose = tables[name]
+            leg = client.deliver(name, pose.x, pose.y, pose.yaw, LEG_TIMEOUT_S)
+            leg.ok = leg.ok and leg.xy_error <= XY_TOL and leg.yaw_error <= YAW_TOL
+            legs.append(leg)
+            say(("  " if leg.ok else "  NOT DELIVERED ") + leg.line())
+        sim_s = (rospy.Time.now() - t0_sim).to_sec()
+        wall_s = time.monotonic() - t0_wall
+        delivered = sum(1 for leg in legs if leg.ok and leg.name != "home")
+        home = next((leg for leg in legs if leg.name == "home"), None)
         rospy.signal_shutdown("demo done")
-    say("done: the robot model is complete and every frame is published")
-    return 0
+    LOG_DIR.mkdir(parents=True, exist_ok=True)
+    (LOG_DIR / "delivery.json").write_text(json.dumps(
+        {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s,
+         "legs": [leg.as_dict() for leg in legs]}, indent=2) + "\n")
+    say(f"back home: {'yes' if home and home.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
+    say(f"delivered {delivered}/{len(names)} tables in {sim_s:.1f} s (sim time; {wall_s:.1f} s wall)")
+    return 0 if delivered == len(names) else 1
 
 
 if __name__ == "__main__":

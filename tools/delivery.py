@@ -1,0 +1,148 @@
+"""Scripted table deliveries through move_base, as the restaurant's client would send them.
+
+Used by `make demo` (tools/demo.py) and the delivery benchmark: a real
+``actionlib.SimpleActionClient('move_base', MoveBaseAction)`` sends each table
+pose of the shared tables YAML in turn, and every leg is measured against the
+simulator's ground truth (``ground_truth/odom``): planned path length
+(``move_base/make_plan``), duration in sim time, final position/heading error,
+bumper contacts.  Needs a running simulation + navigation on the current
+ROS master (``navigation_demo.launch``).
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import asdict, dataclass
+
+import actionlib
+import rospy
+from actionlib_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped, Quaternion
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from nav_msgs.msg import Odometry
+from nav_msgs.srv import GetPlan
+from std_msgs.msg import Bool
+
+MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
+
+
+@dataclass
+class Leg:
+    name: str
+    ok: bool
+    state: str
+    text: str
+    planned_m: float       # length of the global plan from the start pose (m)
+    seconds: float         # sim time from goal to result (s)
+    limit_s: float         # physical limit: planned length / top speed (s)
+    xy_error: float        # final ground-truth distance to the goal pose (m)
+    yaw_error: float       # final ground-truth heading error (rad)
+    bumps: int             # bumper contacts during the leg
+
+    def line(self) -> str:
+        if not self.ok:
+            return f"{self.name}: FAILED ({self.state}: {self.text})"
+        ratio = self.seconds / self.limit_s if self.limit_s > 0 else float("nan")
+        return (f"{self.name}: {self.planned_m:.2f} m planned, {self.seconds:.1f} s "
+                f"(limit {self.limit_s:.1f} s, {ratio:.2f}x), final error {self.xy_error * 100:.1f} cm / "
+                f"{math.degrees(self.yaw_error):.1f} deg, bumps {self.bumps}")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def yaw_quaternion(yaw: float) -> Quaternion:
+    return Quaternion(0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+def yaw_of(q) -> float:
+    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+
+class DeliveryClient:
+    """A move_base client with ground-truth bookkeeping (call after rospy.init_node)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.truth: Odometry | None = None
+        self.bumps = 0
+        self._bumping = False
+        rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
+        self.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        with self._lock:
+            self.truth = msg
+
+    def _on_bumper(self, msg: Bool) -> None:
+        with self._lock:
+            if msg.data and not self._bumping:
+                self.bumps += 1
+            self._bumping = msg.data
+
+    def wait_ready(self, timeout: float) -> None:
+        """Wait (wall clock) for ground truth and the move_base server."""
+        deadline = time.monotonic() + timeout
+        while self.truth is None:
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise TimeoutError("no ground_truth/odom from the simulator")
+            time.sleep(0.05)
+        left = max(1.0, deadline - time.monotonic())
+        # wait_for_server counts ROS time, which stands still until /clock runs: poll in wall time
+        while not self.client.wait_for_server(rospy.Duration(0.5)):
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise TimeoutError(f"move_base action server not up after {left:.0f} s")
+        rospy.wait_for_service("move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
+        self.make_plan = rospy.ServiceProxy("move_base/make_plan", GetPlan)
+
+    def planned_length(self, x: float, y: float, yaw: float) -> float:
+        with self._lock:
+            truth = self.truth
+        start = PoseStamped()
+        start.header.frame_id = "map"
+        start.pose = truth.pose.pose
+        goal = PoseStamped()
+        goal.header.frame_id = "map"
+        goal.pose.position.x, goal.pose.position.y = x, y
+        goal.pose.orientation = yaw_quaternion(yaw)
+        try:
+            plan = self.make_plan(start=start, goal=goal, tolerance=0.0).plan.poses
+        except rospy.ServiceException:
+            return float("nan")
+        pts = [(p.pose.position.x, p.pose.position.y) for p in plan]
+        return sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False))
+
+    def deliver(self, name: str, x: float, y: float, yaw: float, timeout_wall: float) -> Leg:
+        """Drive to one pose; measure against ground truth."""
+        planned = self.planned_length(x, y, yaw)
+        goal = MoveBaseGoal()
+        goal.target_pose.header.frame_id = "map"
+        goal.target_pose.header.stamp = rospy.Time.now()
+        goal.target_pose.pose.position.x, goal.target_pose.pose.position.y = x, y
+        goal.target_pose.pose.orientation = yaw_quaternion(yaw)
+        with self._lock:
+            bumps0 = self.bumps
+        t0 = rospy.Time.now()
+        self.client.send_goal(goal)
+        finished = False
+        deadline = time.monotonic() + timeout_wall
+        while not finished and time.monotonic() < deadline and not rospy.is_shutdown():
+            finished = self.client.wait_for_result(rospy.Duration(0.2)) or \
+                self.client.get_state() not in (GoalStatus.PENDING, GoalStatus.ACTIVE)
+            # wait_for_result's duration is ROS (sim) time: the wall deadline bounds a stalled sim
+        if not finished:
+            self.client.cancel_goal()
+            state, text = "TIMEOUT", f"no result within {timeout_wall:.0f} s wall time"
+        else:
+            state = GoalStatus.to_string(self.client.get_state())
+            text = self.client.get_goal_status_text()
+        seconds = (rospy.Time.now() - t0).to_sec()
+        with self._lock:
+            p = self.truth.pose.pose
+            bumps = self.bumps - bumps0
+        xy = math.hypot(p.position.x - x, p.position.y - y)
+        dyaw = abs(math.remainder(yaw_of(p.orientation) - yaw, 2 * math.pi))
+        return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
+                   seconds=seconds, limit_s=planned / MAX_SPEED, xy_error=xy, yaw_error=dyaw, bumps=bumps)
