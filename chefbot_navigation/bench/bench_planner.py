@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Global planner benchmark: time per plan and path cost against exact Dijkstra.
+
+Cases: the hotel costmap (chefbot_sim/worlds/hotel_map.yaml, home -> every
+table) and a generated 1200 x 1200 office map (1.44 M cells, random
+start/goal pairs in free space).  The reference is an exact Dijkstra on the
+same 8-connected graph with the same edge costs
+(scipy.sparse.csgraph.dijkstra, chefbot_navigation.reference); NavFn's
+9-15 ms on a map of that size gives the speed goal (<= 10x, i.e. 150 ms).
+
+    python chefbot_navigation/bench/bench_planner.py [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
+
+from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap  # noqa: E402
+from chefbot_navigation.map_io import load_map  # noqa: E402
+from chefbot_navigation.maps_gen import office_map  # noqa: E402
+from chefbot_navigation.planners import PlannerParams, cell_costs, make_planner  # noqa: E402
+from chefbot_navigation.reference import exact_cost, grid_graph  # noqa: E402
+
+HOTEL = ROOT / "chefbot_sim" / "worlds" / "hotel_map.yaml"
+TABLES = ROOT / "chefbot_sim" / "worlds" / "hotel_tables.yaml"
+SPEED_GOAL_MS = 150.0
+COST_GOAL = 1.02
+
+
+def _pairs_hotel() -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    import yaml
+    poses = yaml.safe_load(TABLES.read_text())["poses"]
+    home = (poses["home"]["x"], poses["home"]["y"])
+    return [(home, (p["x"], p["y"])) for name, p in sorted(poses.items()) if name != "home"]
+
+
+def _pairs_random(cm, n: int, seed: int, min_dist: float) -> list:
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(cm.cost == 0)
+    pairs = []
+    while len(pairs) < n:
+        a, b = free[rng.integers(len(free), size=2)]
+        pa = tuple(float(v) for v in cm.info.cell_to_world(a[0], a[1]))
+        pb = tuple(float(v) for v in cm.info.cell_to_world(b[0], b[1]))
+        if np.hypot(pa[0] - pb[0], pa[1] - pb[1]) >= min_dist:
+            pairs.append((pa, pb))
+    return pairs
+
+
+def _measure(case: str, cm, pairs, planner_name: str, reps: int) -> list[dict]:
+    params = PlannerParams()
+    planner = make_planner(planner_name, params)
+    costs = cell_costs(cm.cost, params)
+    ours_ms, ref_ms, ratios = [], [], []
+    for start, goal in pairs:
+        best = float("inf")
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            plan = planner.plan(cm, start, goal)
+            best = min(best, (time.perf_counter() - t0) * 1e3)
+        ours_ms.append(best)
+        s = tuple(int(v) for v in cm.info.world_to_cell(*start))
+        g = tuple(int(v) for v in cm.info.world_to_cell(*goal))
+        t0 = time.perf_counter()
+        graph = grid_graph(costs)
+        ref = exact_cost(costs, s, g, graph)
+        ref_ms.append((time.perf_counter() - t0) * 1e3)
+        assert np.isfinite(ref) and costs[s] < np.inf and cm.cost[g] < INSCRIBED
+        ratios.append(plan.cost / ref)
+    ref_name = "scipy csgraph Dijkstra (exact, same graph)"
+    med = statistics.median(ours_ms)
+    return [
+        {"bench": "planner", "case": f"{case} ({planner_name}), median of {len(pairs)}", "metric": "ms/plan",
+         "ours": med, "reference": statistics.median(ref_ms), "reference_name": ref_name,
+         "goal": f"<= {SPEED_GOAL_MS:g} ms (10x NavFn 9-15 ms)", "met": med <= SPEED_GOAL_MS},
+        {"bench": "planner", "case": f"{case} ({planner_name}), worst of {len(pairs)}", "metric": "ms/plan",
+         "ours": max(ours_ms), "reference": max(ref_ms), "reference_name": ref_name,
+         "goal": f"<= {SPEED_GOAL_MS:g} ms", "met": max(ours_ms) <= SPEED_GOAL_MS},
+        {"bench": "planner", "case": f"{case} ({planner_name}), worst of {len(pairs)}", "metric": "path cost ratio",
+         "ours": max(ratios), "reference": 1.0, "reference_name": "exact Dijkstra cost",
+         "goal": f"<= {COST_GOAL:g}", "met": max(ratios) <= COST_GOAL},
+    ]
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Benchmark rows (see tools/bench.py)."""
+    rows: list[dict] = []
+    cparams = CostmapParams()
+    reps = 1 if quick else 3
+    if HOTEL.exists():
+        hotel = LayeredCostmap(load_map(HOTEL), cparams).master()
+        pairs = _pairs_hotel()[: 3 if quick else None]
+        rows += _measure("hotel 328x268, home->tables", hotel, pairs, "hierarchical", reps)
+    office = LayeredCostmap(office_map(1200, seed=0), cparams).master()
+    pairs = _pairs_random(office, 3 if quick else 10, seed=1, min_dist=20.0)
+    rows += _measure("office 1200x1200 (1.44 M cells), random >= 20 m", office, pairs, "hierarchical", reps)
+    if not quick:
+        rows += _measure("office 1200x1200 (1.44 M cells), random >= 20 m", office, pairs[:3], "dijkstra", 1)
+    return rows
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    for r in run(args.quick):
+        ref = "-" if r["reference"] is None else f"{r['reference']:.4g}"
+        print(f"{r['case']:<70} {r['metric']:<16} ours {r['ours']:<10.4g} ref {ref:<10} met {r['met']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
