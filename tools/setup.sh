@@ -28,8 +28,14 @@ if [ ${#missing[@]} -gt 0 ]; then
         SUDO="sudo"
     fi
     export DEBIAN_FRONTEND=noninteractive
-    $SUDO apt-get update -q
-    $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+    mkdir -p build
+    say "  (apt output: build/apt-install.log; about a minute on a fresh machine)"
+    if ! { $SUDO apt-get update -q && $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"; } \
+            > build/apt-install.log 2>&1; then
+        tail -n 30 build/apt-install.log >&2
+        echo "[setup] ERROR: apt-get failed (full log: build/apt-install.log)" >&2
+        exit 1
+    fi
 else
     say "Debian packages: all ${#PKGS[@]} present"
 fi
