@@ -237,10 +237,12 @@ class BulletSim:
         return {n: j for n, j in self._joints.items()
                 if self._c.getJointInfo(r, j)[2] != pybullet.JOINT_FIXED}
 
-    def set_joint_velocities(self, joints: Sequence[int], velocities: Sequence[float], max_torque: float) -> None:
-        """Velocity-control motors: target rad/s, torque limit N·m."""
+    def set_joint_velocities(self, joints: Sequence[int], velocities: Sequence[float],
+                             max_torque: float | Sequence[float]) -> None:
+        """Velocity-control motors: target rad/s, torque limit N·m (one for all, or one per joint)."""
+        forces = [float(max_torque)] * len(joints) if isinstance(max_torque, (int, float)) else list(max_torque)
         self._c.setJointMotorControlArray(self._need_robot(), list(joints), pybullet.VELOCITY_CONTROL,
-                                          targetVelocities=list(velocities), forces=[max_torque] * len(joints))
+                                          targetVelocities=list(velocities), forces=forces)
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of the given joints."""

@@ -1,9 +1,16 @@
 """The ChefBot simulator core, without ROS.
 
-Steps physics at a fixed 1/240 s, runs the plugin-mode differential drive
-(cmd_vel → wheel speeds, 0.6 s command timeout, odometry from the simulated
-wheel joint angles) and produces sensor readings at their configured rates,
-all on sim time.  :meth:`Simulator.step` returns the readings due as
+Steps physics at a fixed 1/240 s and drives the wheels in one of two modes:
+
+* ``plugin`` (Gazebo's kobuki-style drive plugin): cmd_vel → wheel speeds,
+  0.6 s command timeout, odometry from the simulated wheel joint angles;
+* ``firmware`` (firmware-in-the-loop): our LaunchPad firmware core on a
+  pseudo-terminal, stepped every physics step on sim time, its motor duties
+  through a DC-motor model, encoder edges back into it
+  (:mod:`chefbot_sim.firmware_drive`); no cmd_vel and no odometry here
+  (``robot_standalone.launch`` on the pty does that, as on the robot).
+
+Sensor readings come at their configured rates, all on sim time.  :meth:`Simulator.step` returns the readings due as
 :class:`Event` objects; the ROS node turns them into messages, the benchmark
 throws them away.
 
@@ -23,11 +30,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from chefbot_sim.bullet import BulletSim
+from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.world import Pose2D, Shape, World
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
+DRIVES = ("plugin", "firmware")
 
 
 class SimConfigError(ValueError):
@@ -50,9 +59,16 @@ class SimOptions:
     depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
     depth_coarse_stride: int = 8       # px between coarse samples outside the band
     sonar_rings: int = 2               # rings of 8 rays in the cone, plus the axis ray
+    drive: str = "plugin"              # plugin | firmware
+    pty_link: str = ""                 # firmware mode: symlink to the emulated LaunchPad's pty ('' = none)
+    battery_volts: float = 12.4        # firmware mode: battery voltage the board measures (V)
     time_step: float = 1.0 / 240.0
 
     def validate(self) -> None:
+        if self.drive not in DRIVES:
+            raise SimConfigError(f"drive must be one of {', '.join(DRIVES)}, got {self.drive!r}")
+        if not (math.isfinite(self.battery_volts) and self.battery_volts >= 0):
+            raise SimConfigError(f"battery_volts must be a finite number >= 0, got {self.battery_volts!r}")
         if self.depth_fill not in ("coarse", "full", "none"):
             raise SimConfigError(f"depth_fill must be coarse, full or none, got {self.depth_fill!r}")
         for name in ("clock_rate", "joint_state_rate", "ground_truth_rate", "bumper_rate", "rgb_rate"):
@@ -160,6 +176,7 @@ class _State:
     wheel_target: tuple[float, float] = (0.0, 0.0)
     odom: tuple[float, float, float] = (0.0, 0.0, 0.0)
     wheel_prev: tuple[float, float] | None = None
+    wheel_speed: tuple[float, float] = (0.0, 0.0)
     imu_prev_vel: np.ndarray | None = None
     rng_state: dict | None = None
 
@@ -202,11 +219,24 @@ class Simulator:
             "imu": p.imu.update_rate, "ultrasonic": p.ultrasonic.update_rate,
             "depth": cam.update_rate, "rgb": self.options.rgb_rate, "bumper": self.options.bumper_rate,
         }
+        self.drive = self.options.drive
+        if self.drive == "firmware":
+            # robot_standalone's diff_tf owns odom + tf; the sim must not compete
+            self.rates["odom"] = 0.0
         self.enabled = {k: v > 0 for k, v in self.rates.items()}
         self.rng = np.random.default_rng(self.options.seed)
         self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
         self._initial = self.bullet.save_state()
+        self.firmware: FirmwareDrive | None = None
+        if self.drive == "firmware":
+            try:
+                self.motor = self._motor_model(urdf_xml)
+                self.firmware = FirmwareDrive(self.options.pty_link, self.motor, self.s.wheel_prev,
+                                              self.options.battery_volts)
+            except Exception:
+                self.bullet.close()
+                raise
 
     # ------------------------------------------------------------ control
     @property
@@ -214,16 +244,32 @@ class Simulator:
         """Sim time in s."""
         return self.s.time
 
+    def _motor_model(self, urdf_xml: str) -> DcMotor:
+        """The wheel motors from the URDF's wheel joint limits (effort = stall
+        torque N·m, velocity = free speed rad/s), else the book's Pololu 37D."""
+        from chefbot_description.model import parse_urdf
+
+        joint = parse_urdf(urdf_xml).joints.get(self.params.drive.left_joint)
+        return motor_from_joint_limits(getattr(joint, "effort", None), getattr(joint, "velocity", None))
+
     def set_cmd_vel(self, v: float, w: float) -> None:
-        """A cmd_vel (v m/s forward, w rad/s yaw rate), stamped now in sim time."""
+        """A cmd_vel (v m/s forward, w rad/s yaw rate), stamped now in sim time (plugin mode only)."""
+        if self.firmware is not None:
+            raise RuntimeError("set_cmd_vel: the drive is 'firmware' (cmd_vel goes through "
+                               "robot_standalone.launch and the emulated LaunchPad)")
         self.s.cmd = (float(v), float(w))
         self.s.cmd_time = self.s.time
 
     def set_enabled(self, kind: str, on: bool) -> None:
-        """Switch a reading on/off (the node switches off what nobody subscribes to)."""
+        """Switch a reading on/off (the node switches off what nobody subscribes to).
+        Readings with rate 0 (and ``odom`` in firmware mode) stay off."""
         if kind not in self.enabled:
             raise KeyError(kind)
         self.enabled[kind] = bool(on) and self.rates[kind] > 0
+
+    def _firmware_motors(self) -> None:
+        cmds = self.firmware.motor_commands(self.s.wheel_speed)
+        self.bullet.set_joint_velocities(self._wheels, [c[0] for c in cmds], [c[1] for c in cmds])
 
     def _drive(self) -> None:
         d = self.params.drive
@@ -241,11 +287,19 @@ class Simulator:
         """Advance ``n`` physics steps; return the readings that fell due."""
         events: list[Event] = []
         dt = self.options.time_step
+        fw = self.firmware
         for _ in range(n):
-            self._drive()
+            if fw is None:
+                self._drive()
+            else:
+                self._firmware_motors()
             self.bullet.step()
             self.s.steps += 1
             self.s.time = self.s.steps * dt
+            if fw is not None:
+                ang, vel = self.bullet.joint_states(self._wheels)
+                self.s.wheel_speed = (float(vel[0]), float(vel[1]))
+                fw.after_physics(ang, self.s.time)
             for kind in SENSORS:
                 rate = self.rates[kind]
                 if rate <= 0 or self.s.time + 1e-9 < self.s.due[kind]:
@@ -261,6 +315,14 @@ class Simulator:
                     continue
                 if kind == "imu":
                     data = self._imu()
+                    if fw is not None:
+                        fw.set_imu(data["orientation"])
+                    if self.enabled[kind]:
+                        events.append(Event(kind, self.s.time, data))
+                    continue
+                if kind == "ultrasonic" and fw is not None:  # the board's HC-SR04 always measures
+                    data = self._sonar()
+                    fw.set_ultrasonic(data["range"])
                     if self.enabled[kind]:
                         events.append(Event(kind, self.s.time, data))
                     continue
@@ -444,10 +506,18 @@ class Simulator:
     def spawned(self) -> list[str]:
         return [s.name for s in self._spawned]
 
-    def teleport(self, pose: Pose2D) -> None:
-        """Put the robot at ``pose`` at rest; odometry keeps counting from where it was."""
-        self.bullet.teleport(pose)
+    def _resync_wheels(self) -> None:
+        """Wheel angles changed outside physics: no odometry, no encoder edges for that."""
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_speed = (0.0, 0.0)
+        if self.firmware is not None:
+            self.firmware.resync(self.s.wheel_prev)
+
+    def teleport(self, pose: Pose2D) -> None:
+        """Put the robot at ``pose`` at rest; odometry (and in firmware mode the
+        encoder counts) keeps counting from where it was."""
+        self.bullet.teleport(pose)
+        self._resync_wheels()
         self.s.imu_prev_vel = None
         self.s.cmd_time = -math.inf
 
@@ -462,15 +532,19 @@ class Simulator:
         self.s.cmd = (0.0, 0.0)
         self.s.cmd_time = -math.inf
         self.s.odom = (0.0, 0.0, 0.0)
-        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self._resync_wheels()
         self.s.imu_prev_vel = None
-        self._drive()
+        if self.firmware is None:
+            self._drive()
 
     # ------------------------------------------------------------ snapshots
     def snapshot(self) -> tuple[int, _State, list[Shape]]:
         """Everything needed to continue identically later (physics + drive,
         odometry, schedules, noise generator).  Valid while the set of spawned
-        obstacles is unchanged."""
+        obstacles is unchanged.  Not in firmware mode (the firmware core's state
+        cannot be saved)."""
+        if self.firmware is not None:
+            raise RuntimeError("snapshot: not available in firmware mode (the firmware core has no snapshots)")
         st = _State(**{k: getattr(self.s, k) for k in self.s.__dataclass_fields__})
         st.due = dict(self.s.due)
         st.rng_state = self.rng.bit_generator.state
@@ -487,17 +561,38 @@ class Simulator:
         target = self.s.wheel_target
         self.bullet.set_joint_velocities(self._wheels, target, self.params.drive.torque)
 
+    @property
+    def pty_path(self) -> str | None:
+        """Firmware mode: the emulated LaunchPad's pty (what launchpad_node opens)."""
+        return self.firmware.pty_path if self.firmware is not None else None
+
     def close(self) -> None:
+        """Free pybullet and, in firmware mode, unplug the pty (the symlink goes away)."""
+        if self.firmware is not None:
+            self.firmware.close()
+            self.firmware = None
         self.bullet.close()
 
 
 class Pacer:
-    """Holds the sim to ``real_time_factor`` × wall time (0 = as fast as possible)."""
+    """Holds the sim to ``real_time_factor`` × wall time (0 = as fast as possible).
 
-    def __init__(self, real_time_factor: float, clock: Callable[[], float] = _time.monotonic) -> None:
+    By default a sim that fell behind (a slow step, a loaded machine) catches up
+    by running flat out until it is back on schedule.  With ``max_lag`` (s of
+    wall time) it never runs ahead of ``real_time_factor`` instead: when it is
+    more than ``max_lag`` behind, the schedule restarts from now.  Firmware
+    mode needs that: a catch-up burst would hand the real-time driver several
+    encoder lines at once, which it must treat as an impossible jump.
+    """
+
+    def __init__(self, real_time_factor: float, clock: Callable[[], float] = _time.monotonic,
+                 max_lag: float | None = None) -> None:
         if real_time_factor < 0:
             raise ValueError(f"real_time_factor must be >= 0, got {real_time_factor}")
+        if max_lag is not None and max_lag < 0:
+            raise ValueError(f"max_lag must be >= 0, got {max_lag}")
         self.rtf = real_time_factor
+        self.max_lag = max_lag
         self._clock = clock
         self._wall0: float | None = None
         self._sim0 = 0.0
@@ -513,5 +608,9 @@ class Pacer:
             return 0.0
         if self._wall0 is None:
             self.restart(sim_time)
+        now = self._clock()
         target = self._wall0 + (sim_time - self._sim0) / self.rtf
-        return max(0.0, target - self._clock())
+        if self.max_lag is not None and now - target > self.max_lag:
+            self.restart(sim_time)
+            return 0.0
+        return max(0.0, target - now)
