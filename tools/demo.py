@@ -110,6 +110,14 @@ def main() -> int:
                 say("ERROR: the ROS master did not come up")
                 return 1
             time.sleep(0.1)
+        # rospy reads /use_sim_time once, in init_node: wait until the launch has set it,
+        # or every duration below would be measured in wall time.
+        master = rosgraph.Master("/chefbot_demo")
+        while not master.hasParam("/use_sim_time") or not master.getParam("/use_sim_time"):
+            if time.monotonic() > deadline or launch.poll() is not None:
+                say(f"ERROR: the simulation did not set /use_sim_time; see {log}")
+                return 1
+            time.sleep(0.1)
         rospy.init_node("chefbot_demo", anonymous=True, disable_signals=True)
         client = DeliveryClient()
         say("waiting for the simulator and move_base ...")
