@@ -8,10 +8,11 @@ coordinates in m), raising :class:`PlanningError` with a reason and a
 * ``dijkstra``: exact minimum-cost path on the 8-connected grid
   (``skimage.graph.MCP_Geometric``: edge cost = step length x mean of the two
   cell costs), then string-pulling and resampling;
-* ``hierarchical``: the same on a 4x coarser grid first (mean of the cell
+* ``hierarchical``: the same on a 5x coarser grid first (mean of the cell
   costs, blocked cells counted at a high penalty), then exact Dijkstra at
-  full resolution inside a corridor around the coarse path (falls back to
-  ``dijkstra`` when the corridor has no path).  Identical to
+  full resolution on only the cells of a corridor around the coarse path
+  (scipy.sparse.csgraph; falls back to ``dijkstra`` when the corridor has
+  no path).  Identical to
   ``dijkstra`` on maps up to ``full_search_cells`` cells.
 
 Cell traversal cost = neutral_cost + cost_factor * cost / 252 for costs below
@@ -27,6 +28,8 @@ from typing import Protocol
 
 import cv2
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 from skimage.graph import MCP_Geometric
 
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap
@@ -52,7 +55,7 @@ class PlannerParams:
     smooth: bool = True                # string-pull the grid path
     path_resolution: float = 0.05      # m, spacing of the published path
     full_search_cells: int = 250_000   # hierarchical: plan exactly below this many cells
-    coarse_factor: int = 4             # hierarchical: cells per coarse cell (per axis)
+    coarse_factor: int = 5             # hierarchical: cells per coarse cell (per axis)
     corridor_margin: int = 3           # hierarchical: coarse cells around the coarse path
 
     def __post_init__(self) -> None:
@@ -86,14 +89,18 @@ class GlobalPlanner(Protocol):
         ...
 
 
+def cost_lut(params: PlannerParams) -> np.ndarray:
+    """Traversal cost (float64) for each of the 256 costmap values, ``inf`` where impassable."""
+    lut = params.neutral_cost + params.cost_factor * np.minimum(np.arange(256), 252) / 252.0
+    lut[INSCRIBED:] = np.inf
+    if params.allow_unknown:
+        lut[NO_INFORMATION] = params.neutral_cost + params.cost_factor
+    return lut
+
+
 def cell_costs(cost: np.ndarray, params: PlannerParams) -> np.ndarray:
     """Traversal cost per cell (float64), ``inf`` where impassable."""
-    c = params.neutral_cost + params.cost_factor * np.minimum(cost, 252).astype(np.float64) / 252.0
-    blocked = cost >= INSCRIBED
-    if params.allow_unknown:
-        blocked &= cost != NO_INFORMATION
-    c[blocked] = np.inf
-    return c
+    return cost_lut(params)[cost]
 
 
 def path_cost(cells: np.ndarray, costs: np.ndarray) -> float:
@@ -237,7 +244,7 @@ class DijkstraPlanner:
 
 
 class HierarchicalPlanner(DijkstraPlanner):
-    """Coarse-to-fine Dijkstra: coarse path on a min-pooled grid, exact search in its corridor."""
+    """Coarse-to-fine Dijkstra: coarse path on a block-averaged grid, exact search in its corridor."""
 
     def _grid_path(self, costs: np.ndarray, s: tuple[int, int], g: tuple[int, int]) -> np.ndarray | None:
         p = self.params
@@ -246,38 +253,88 @@ class HierarchicalPlanner(DijkstraPlanner):
         k = p.coarse_factor
         h, w = costs.shape
         H, W = -(-h // k), -(-w // k)
-        padded = np.full((H * k, W * k), np.inf)
-        padded[:h, :w] = costs
-        # mean pooling with blocked cells counted at a large penalty: a coarse cell with a wall in it
+        blocked = ~np.isfinite(costs)
+        # block mean with blocked cells counted at a large penalty: a coarse cell with a wall in it
         # stays passable (a door may be narrower than a coarse cell) but is avoided when an open
         # way exists, so the corridor search below rarely needs the full-grid fallback
-        penalty = 100.0 * (p.neutral_cost + p.cost_factor)
-        blocks = np.where(np.isfinite(padded), padded, penalty).reshape(H, k, W, k)
-        coarse = blocks.mean(axis=(1, 3))
-        coarse[np.isinf(padded).reshape(H, k, W, k).all(axis=(1, 3))] = np.inf
+        penalty = np.float32(PENALTY * (p.neutral_cost + p.cost_factor))
+        pen = np.full((H * k, W * k), penalty, dtype=np.float32)
+        pen[:h, :w] = np.where(blocked, penalty, costs)
+        coarse = cv2.resize(pen, (W, H), interpolation=cv2.INTER_AREA).astype(np.float64)
+        full = np.ones((H * k, W * k), dtype=np.float32)
+        full[:h, :w] = blocked
+        coarse[cv2.resize(full, (W, H), interpolation=cv2.INTER_AREA) > 1.0 - 1e-6] = np.inf
         cs, cg = (s[0] // k, s[1] // k), (g[0] // k, g[1] // k)
         coarse[cs] = min(coarse[cs], costs[s])
+        coarse[cg] = min(coarse[cg], costs[g])
         cpath = _mcp_path(coarse, cs, cg)
         if cpath is None:
             return None   # a coarse cell is blocked only if all its cells are: no fine path either
-        m = p.corridor_margin
-        mask = np.zeros((H, W), dtype=bool)
-        mask[cpath[:, 0], cpath[:, 1]] = True
-        mask = _dilate(mask, m)
+        mask = np.zeros((H, W), dtype=np.uint8)
+        mask[cpath[:, 0], cpath[:, 1]] = 1
+        mask = _dilate(mask, p.corridor_margin)
         fine = np.repeat(np.repeat(mask, k, axis=0), k, axis=1)[:h, :w]
-        rows, cols = np.nonzero(fine.any(axis=1))[0], np.nonzero(fine.any(axis=0))[0]
-        r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-        sub = np.where(fine[r0:r1, c0:c1], costs[r0:r1, c0:c1], np.inf)
-        path = _mcp_path(sub, (s[0] - r0, s[1] - c0), (g[0] - r0, g[1] - c0))
+        path = _corridor_path(costs, fine, s, g)
         if path is None:
             return _mcp_path(costs, s, g)
-        return path + np.array([r0, c0])
+        return path
+
+
+def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
+                   g: tuple[int, int]) -> np.ndarray | None:
+    """Exact Dijkstra restricted to the corridor cells (scipy csgraph on just those cells).
+
+    The work grows with the corridor's area, not with its bounding box, which
+    matters for long diagonal routes across a large map.
+    """
+    rows = np.nonzero(corridor.any(axis=1))[0]
+    cols = np.nonzero(corridor.any(axis=0))[0]
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    sub = costs[r0:r1, c0:c1]
+    ok = corridor[r0:r1, c0:c1].astype(bool) & np.isfinite(sub)
+    hb, wb = ok.shape
+    ids = np.flatnonzero(ok)
+    n = ids.size
+    node = np.full(hb * wb, -1, dtype=np.int64)
+    node[ids] = np.arange(n)
+    node = node.reshape(hb, wb)
+    sr, sc, gr, gc = s[0] - r0, s[1] - c0, g[0] - r0, g[1] - c0
+    if not (0 <= sr < hb and 0 <= sc < wb and 0 <= gr < hb and 0 <= gc < wb) or node[sr, sc] < 0 \
+            or node[gr, gc] < 0:
+        return None
+    rr, cc = np.divmod(ids, wb)
+    c = sub.ravel()[ids]
+    src, dst, wt = [], [], []
+    for dr, dc in _OFFSETS:
+        nr, nc = rr + dr, cc + dc
+        inb = (nr >= 0) & (nr < hb) & (nc >= 0) & (nc < wb)
+        nb = np.full(n, -1, dtype=np.int64)
+        nb[inb] = node[nr[inb], nc[inb]]
+        keep = nb >= 0
+        i = np.nonzero(keep)[0]
+        src.append(i)
+        dst.append(nb[keep])
+        wt.append(math.hypot(dr, dc) * 0.5 * (c[i] + c[nb[keep]]))
+    graph = csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
+    start, goal = int(node[sr, sc]), int(node[gr, gc])
+    dist, pred = dijkstra(graph, directed=True, indices=start, return_predecessors=True)
+    if not np.isfinite(dist[goal]):
+        return None
+    chain = [goal]
+    while chain[-1] != start:
+        chain.append(int(pred[chain[-1]]))
+    cells = np.column_stack(np.divmod(ids[np.array(chain[::-1])], wb))
+    return cells + np.array([r0, c0])
+
+
+PENALTY = 100.0   # x the costliest passable cell: weight of a blocked cell in a coarse block
+_OFFSETS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
 def _dilate(mask: np.ndarray, m: int) -> np.ndarray:
     """Binary dilation with a (2m+1)^2 square."""
     kernel = np.ones((2 * m + 1, 2 * m + 1), dtype=np.uint8)
-    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
+    return cv2.dilate(mask.astype(np.uint8), kernel)
 
 
 PLANNERS = {"dijkstra": DijkstraPlanner, "hierarchical": HierarchicalPlanner}
