@@ -227,3 +227,18 @@ def test_pacer():
     assert Pacer(0.0).delay(100.0) == 0.0
     with pytest.raises(ValueError):
         Pacer(-1.0)
+
+
+def test_pacer_without_catch_up():
+    """Firmware mode: a sim that fell behind restarts its schedule instead of bursting."""
+    now = [0.0]
+    p = Pacer(1.0, clock=lambda: now[0], max_lag=0.02)
+    assert p.delay(0.0) == 0.0
+    now[0] = 0.51                                   # 10 ms behind: still on the old schedule
+    assert p.delay(0.5) == 0.0
+    assert p.delay(0.52) == pytest.approx(0.01)
+    now[0] = 1.0                                    # 0.48 s behind: restart from here
+    assert p.delay(0.52) == 0.0
+    assert p.delay(0.6) == pytest.approx(0.08)      # paced at 1x again, no catch-up burst
+    with pytest.raises(ValueError):
+        Pacer(1.0, max_lag=-1.0)
