@@ -12,6 +12,8 @@ Units: metres, seconds, radians; quaternions are (x, y, z, w).
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import math
 import os
 import tempfile
@@ -43,16 +45,45 @@ class BulletError(RuntimeError):
     """Facade misuse or a model the facade cannot load (names the culprit)."""
 
 
+def display_problem() -> str | None:
+    """Why pybullet's GUI could not open here (None = a display answers).
+
+    pybullet's GUI ends the whole process with "cannot connect to X server"
+    when the display is missing, so ask Xlib first (when libX11 is there).
+    """
+    disp = os.environ.get("DISPLAY")
+    if not disp:
+        return "DISPLAY is not set"
+    try:
+        x11 = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
+    except OSError:
+        return None  # cannot check without Xlib: let pybullet try
+    x11.XOpenDisplay.restype = ctypes.c_void_p
+    x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = x11.XOpenDisplay(disp.encode())
+    if not handle:
+        return f"cannot connect to the X server at DISPLAY={disp}"
+    x11.XCloseDisplay(handle)
+    return None
+
+
 class BulletSim:
     """A pybullet world with one robot.
 
-    ``gui`` opens pybullet's own viewer when a display exists (falls back to
-    DIRECT otherwise); ``time_step`` is the fixed physics step in s.  Runs are
+    ``gui`` opens pybullet's own viewer; without a usable display that raises
+    :class:`BulletError` saying so (instead of pybullet ending the process);
+    ``time_step`` is the fixed physics step in s.  Runs are
     deterministic: the same calls in the same order give the same results.
     """
 
     def __init__(self, gui: bool = False, time_step: float = TIME_STEP) -> None:
-        self.gui = bool(gui and os.environ.get("DISPLAY"))
+        self.gui = bool(gui)
+        if self.gui:
+            problem = display_problem()
+            if problem:
+                raise BulletError(f"gui:=true needs a display, but {problem}; run headless (gui:=false) "
+                                  "or under a virtual display (xvfb-run)")
         self._c = BulletClient(connection_mode=pybullet.GUI if self.gui else pybullet.DIRECT)
         self.time_step = float(time_step)
         self._c.setPhysicsEngineParameter(fixedTimeStep=self.time_step, deterministicOverlappingPairs=1)
@@ -174,7 +205,7 @@ class BulletSim:
         try:
             with os.fdopen(fd, "wb") as f:
                 f.write(ET.tostring(root))
-            with self.no_rendering():
+            with self.no_rendering(), _quiet_stdout():  # pybullet prints every merged link
                 self.robot = self._c.loadURDF(
                     path, basePosition=(pose.x, pose.y, 0.0),
                     baseOrientation=self._c.getQuaternionFromEuler((0, 0, pose.yaw)),
@@ -357,6 +388,23 @@ class BulletSim:
             if v == body:
                 return k
         return "floor" if body == self.floor else str(body)
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence C-level writes to fd 1 (pybullet's URDF loader chatter) for a moment."""
+    try:
+        saved = os.dup(1)
+    except OSError:  # no stdout at all
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _origin(el: ET.Element | None) -> np.ndarray:

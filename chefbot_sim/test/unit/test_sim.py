@@ -242,3 +242,12 @@ def test_pacer_without_catch_up():
     assert p.delay(0.6) == pytest.approx(0.08)      # paced at 1x again, no catch-up burst
     with pytest.raises(ValueError):
         Pacer(1.0, max_lag=-1.0)
+
+
+def test_gui_without_display_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    with pytest.raises(BulletError, match="gui:=true needs a display, but DISPLAY is not set"):
+        BulletSim(gui=True)
+    monkeypatch.setenv("DISPLAY", ":93")  # nothing listens there
+    with pytest.raises(BulletError, match="cannot connect to the X server at DISPLAY=:93"):
+        BulletSim(gui=True)
