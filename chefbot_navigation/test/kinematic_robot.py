@@ -47,6 +47,7 @@ class KinematicRobot:
         self.pub_scan = rospy.Publisher("scan", LaserScan, queue_size=2)
         self.tf = tf2_ros.TransformBroadcaster()
         rospy.Subscriber("cmd_vel", Twist, self.on_cmd, queue_size=10, tcp_nodelay=True)
+        self.publish_scan = True          # tests switch the sensor off to check the watchdog
         self.running = True
         self.thread = threading.Thread(target=self.loop, daemon=True)
         self.thread.start()
@@ -103,7 +104,7 @@ class KinematicRobot:
             if step % 2 == 0:
                 self.tf.sendTransform([pose2d_to_transform(odom_pose, stamp, "odom", "base_footprint"),
                                        pose2d_to_transform(self.start, stamp, "map", "odom")])
-            if step % 10 == 0:
+            if step % 10 == 0 and self.publish_scan:
                 self.pub_scan.publish(self.scan(self.start.compose(odom_pose), stamp))
             step += 1
             next_wall += DT / self.rtf

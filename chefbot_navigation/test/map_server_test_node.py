@@ -59,6 +59,12 @@ class MapServerTest(unittest.TestCase):
         self.assertIsNotNone(meta, "no latched map_metadata")
         self.assertEqual((meta.width, meta.height), (self.expected.info.width, self.expected.info.height))
 
+    def test_map_file_param_inside_namespace(self) -> None:
+        msg = wait_for_message("second/map", OccupancyGrid, 30.0)
+        self.assertIsNotNone(msg, "no map in namespace 'second'")
+        np.testing.assert_array_equal(msg_to_occupancy(msg).data, self.expected.data)
+        rospy.wait_for_service("second/static_map", 30.0)
+
     def test_static_map_service_equals_topic(self) -> None:
         rospy.wait_for_service("static_map", 30.0)
         resp = rospy.ServiceProxy("static_map", GetMap)()

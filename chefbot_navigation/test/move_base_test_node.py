@@ -178,6 +178,29 @@ class MoveBaseTest(unittest.TestCase):
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
         self.assert_at(4.3, 0.0, 0.0)
 
+    def test_l_lost_scan_stops_robot_and_resumes(self) -> None:
+        self.go(make_goal(0.0, 0.0, 0.0))
+        self.client.send_goal(make_goal(4.0, -0.4, 0.0))
+        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        self.robot.publish_scan = False
+        t_off = self.robot.now
+        try:
+            wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 60.0, "stop without scan")
+            zero_at = next(t for t, v, w in reversed(self.robot.cmd_log) if v == 0.0 and w == 0.0)
+            # sensor_timeout 1 s + one control period + the last scan's age (10 Hz)
+            self.assertLess(zero_at - t_off, 1.5)
+            self.assertEqual(self.client.get_state(), GoalStatus.ACTIVE)
+        finally:
+            self.robot.publish_scan = True
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
+        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+
+    def test_m_bad_param_stops_node_naming_it(self) -> None:
+        out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],
+                             capture_output=True, text=True, timeout=120, check=False)
+        self.assertNotEqual(out.returncode, 0)
+        self.assertIn("controller/max_vel_x", out.stderr)
+
 
 if __name__ == "__main__":
     rospy.init_node("move_base_test")
