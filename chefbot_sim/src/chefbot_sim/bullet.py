@@ -27,10 +27,16 @@ from pybullet_utils.bullet_client import BulletClient
 from chefbot_sim.world import Pose2D, Shape, World, rpy_to_matrix
 
 TIME_STEP = 1.0 / 240.0
+# Constraint-solver iterations per step (pybullet's default is 50).  Measured in
+# the hotel: 20 iterations cost ~25 % less per step; a 5 s drive ends within
+# 4 mm of the 50-iteration run, and every accuracy test (distance, odometry,
+# sensors) passes unchanged.
+SOLVER_ITERATIONS = 20
 # Collision groups: the world answers sensor rays, the robot does not (so the
 # camera and the sonar never see the robot's own body).
 GROUP_WORLD = 1
 GROUP_ROBOT = 2
+GROUP_FLOOR = 4
 GROUP_ALL = 0xFFFF
 # pybullet turns a URDF cylinder into a convex hull with a collision margin;
 # measured: such a 0.045 m wheel rolls like a 0.04625 m one (2.8 % more ground
@@ -73,11 +79,13 @@ class BulletSim:
 
     ``gui`` opens pybullet's own viewer; without a usable display that raises
     :class:`BulletError` saying so (instead of pybullet ending the process);
-    ``time_step`` is the fixed physics step in s.  Runs are
+    ``time_step`` is the fixed physics step in s, ``solver_iterations`` the
+    constraint solver's iterations per step.  Runs are
     deterministic: the same calls in the same order give the same results.
     """
 
-    def __init__(self, gui: bool = False, time_step: float = TIME_STEP) -> None:
+    def __init__(self, gui: bool = False, time_step: float = TIME_STEP,
+                 solver_iterations: int = SOLVER_ITERATIONS) -> None:
         self.gui = bool(gui)
         if self.gui:
             problem = display_problem()
@@ -86,7 +94,17 @@ class BulletSim:
                                   "or under a virtual display (xvfb-run)")
         self._c = BulletClient(connection_mode=pybullet.GUI if self.gui else pybullet.DIRECT)
         self.time_step = float(time_step)
-        self._c.setPhysicsEngineParameter(fixedTimeStep=self.time_step, deterministicOverlappingPairs=1)
+        if int(solver_iterations) < 1:
+            raise BulletError(f"solver_iterations must be >= 1, got {solver_iterations}")
+        self._c.setPhysicsEngineParameter(fixedTimeStep=self.time_step, deterministicOverlappingPairs=1,
+                                          numSolverIterations=int(solver_iterations))
+        # hot calls bound once (BulletClient builds a partial on every attribute access)
+        self._step = self._c.stepSimulation
+        self._get_joint_states = self._c.getJointStates
+        self._get_base_pose = self._c.getBasePositionAndOrientation
+        self._get_base_velocity = self._c.getBaseVelocity
+        self._get_link_state = self._c.getLinkState
+        self._base_from_inertial: tuple | None = None
         self._c.setGravity(0.0, 0.0, -9.81)
         if self.gui:
             self._c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
@@ -98,6 +116,7 @@ class BulletSim:
             0.0, self._c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half),
             self._c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half), basePosition=(0.0, 0.0, -0.05))
         self._c.changeVisualShape(self.floor, -1, rgbaColor=(0.85, 0.85, 0.8, 1.0))
+        self._c.setCollisionFilterGroupMask(self.floor, -1, GROUP_FLOOR, GROUP_ROBOT)
         self.robot: int | None = None
         self._joints: dict[str, int] = {}
         self._links: dict[str, int] = {}
@@ -148,7 +167,9 @@ class BulletSim:
             raise BulletError(f"shape '{shape.name}': unknown kind {shape.kind!r}")
         body = c.createMultiBody(0.0, col, vis, basePosition=shape.position,
                                  baseOrientation=c.getQuaternionFromEuler(shape.rpy))
-        c.setCollisionFilterGroupMask(body, -1, GROUP_WORLD, GROUP_ALL)
+        # static bodies only meet the robot: no static-static pairs in the broadphase
+        # (measured: 56 hotel shapes touching the floor and each other cost ~60 µs per step)
+        c.setCollisionFilterGroupMask(body, -1, GROUP_WORLD, GROUP_ROBOT)
         self.bodies[shape.name] = body
         return body
 
@@ -277,7 +298,7 @@ class BulletSim:
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of the given joints."""
-        st = self._c.getJointStates(self._need_robot(), list(joints))
+        st = self._get_joint_states(self._need_robot(), list(joints))
         return np.array([s[0] for s in st]), np.array([s[1] for s in st])
 
     def base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -289,11 +310,12 @@ class BulletSim:
         """
         r = self._need_robot()
         c = self._c
-        pos, quat = c.getBasePositionAndOrientation(r)
-        lin, ang = c.getBaseVelocity(r)
-        inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
-        inv_p, inv_q = c.invertTransform(inertial_pos, inertial_orn)
-        pos, quat = c.multiplyTransforms(pos, quat, inv_p, inv_q)
+        pos, quat = self._get_base_pose(r)
+        lin, ang = self._get_base_velocity(r)
+        if self._base_from_inertial is None:  # constant once the robot is loaded
+            inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
+            self._base_from_inertial = c.invertTransform(inertial_pos, inertial_orn)
+        pos, quat = c.multiplyTransforms(pos, quat, *self._base_from_inertial)
         return np.array(pos), np.array(quat), np.array(lin), np.array(ang)
 
     def link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
@@ -302,7 +324,7 @@ class BulletSim:
             p, q, _, _ = self.base_state()
             return p, q
         # the link frame is the joint frame: world link frame = URDF child link frame
-        st = self._c.getLinkState(self._need_robot(), link, computeForwardKinematics=True)
+        st = self._get_link_state(self._need_robot(), link, computeForwardKinematics=True)
         return np.array(st[4]), np.array(st[5])
 
     def teleport(self, pose: Pose2D, z: float = 0.0) -> None:
@@ -321,8 +343,9 @@ class BulletSim:
     # ------------------------------------------------------------ stepping, state
     def step(self, n: int = 1) -> None:
         """Advance physics by ``n`` fixed steps."""
+        step = self._step
         for _ in range(n):
-            self._c.stepSimulation()
+            step()
 
     def save_state(self) -> int:
         """Snapshot of the whole physics state (in memory); returns its id."""

@@ -7,7 +7,7 @@ watchdog, encoder decoder, scheduler and line formatter
 (``chefbot_firmware.host.FirmwareHost``).  Each physics step:
 
 1. the firmware's motor outputs (INA/INB/PWM, read as a signed duty) drive the
-   wheels through :class:`DcMotor` (see there);
+   wheels through :class:`DcMotor` (torque–speed line + gearbox friction, see there);
 2. physics steps;
 3. the wheel joints' angle changes go into the firmware's quadrature decoder
    (8400 edges per revolution) and the board's clock advances by the same
@@ -26,6 +26,9 @@ from dataclasses import dataclass
 
 BOOK_STALL_TORQUE = 18.0 * 9.80665 / 100.0   # N·m: Pololu 37D 12 V, ~18 kg·cm at the gearbox output
 BOOK_FREE_SPEED = 80.0 * 2.0 * math.pi / 60.0  # rad/s: 80 RPM at 12 V, no load
+# Gearbox + brush friction: the 37D's no-load current (~0.2 A) over its stall
+# current (~5.5 A) is ~3.6 % of the stall torque.
+BOOK_FRICTION = 0.036 * BOOK_STALL_TORQUE  # N·m at the wheel
 DEFAULT_BATTERY_VOLTS = 12.4                 # V: a charged 12 V SLA at rest
 
 
@@ -35,56 +38,89 @@ class FirmwareDriveError(RuntimeError):
 
 @dataclass(frozen=True)
 class DcMotor:
-    """A gear motor behind an H-bridge, as a straight torque–speed line.
+    """A gear motor behind an H-bridge: the DC torque–speed line plus gearbox friction.
 
     At duty ``d`` (−1..1, the VNH2SP30's signed PWM fraction) and wheel speed
-    ``w`` (rad/s, robot-forward positive) the output torque is
+    ``w`` (rad/s, robot-forward positive) the motor's torque at the wheel is
 
-        tau = stall_torque · (d − w / free_speed),  clamped to ±stall_torque
+        tau_m = stall_torque · (d − w / w0),  clamped to ±stall_torque
 
-    (the permanent-magnet DC motor line: full stall torque at rest and full
-    duty, zero torque at ``d · free_speed``; the clamp stands for the driver's
-    current limit).  Duty 0 is the driver's brake (INA = INB): the shorted
-    motor brakes with a torque proportional to speed.
+    (the permanent-magnet DC motor line; the clamp stands for the driver's
+    current limit), and the gearbox loses a Coulomb friction torque
+    ``friction_torque`` against the motion (at rest it holds up to that much).
+    ``w0`` is the line's ideal no-load speed, chosen so that the unloaded
+    wheel at full duty turns at ``free_speed`` (the datasheet's 80 RPM, which
+    already includes the friction): ``w0 = free_speed / (1 − friction/stall)``.
+    Duty 0 is the driver's brake (INA = INB): the shorted motor brakes with a
+    torque proportional to speed, and friction stops the last bit.  Small
+    duties (|d| <= friction/stall) do not turn the wheel, as on the robot.
 
-    How it is applied: a pybullet velocity motor with target ``d · free_speed``
-    and a force limit of ``|tau(w)|`` re-evaluated every physics step.  The
-    motor constraint is implicit, so it pushes toward the target with the
-    line's torque but can never overshoot it, even for a lifted wheel whose
-    inertia alone would make an explicit torque step unstable at 240 Hz.
+    How it is applied: a pybullet velocity motor whose target is the speed
+    where motor torque and friction balance and whose force limit is the net
+    torque at the current speed, re-evaluated every physics step.  The motor
+    constraint is implicit, so it pushes toward the balance speed with the
+    model's torque but never overshoots it, even for a lifted wheel whose
+    small inertia would make an explicit torque step unstable at 240 Hz.
     """
 
     stall_torque: float = BOOK_STALL_TORQUE   # N·m at the wheel
     free_speed: float = BOOK_FREE_SPEED       # rad/s at the wheel, full duty, no load
+    friction_torque: float = BOOK_FRICTION    # N·m at the wheel, gearbox + brushes
 
     def __post_init__(self) -> None:
-        for name in ("stall_torque", "free_speed"):
+        for name in ("stall_torque", "free_speed", "friction_torque"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise FirmwareDriveError(f"DcMotor.{name} must be a finite number > 0, got {value!r}")
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise FirmwareDriveError(f"DcMotor.{name} must be a finite number >= 0, got {value!r}")
+        if self.stall_torque <= 0 or self.free_speed <= 0:
+            raise FirmwareDriveError("DcMotor.stall_torque and DcMotor.free_speed must be > 0")
+        if self.friction_torque >= self.stall_torque:
+            raise FirmwareDriveError(f"DcMotor.friction_torque ({self.friction_torque}) must be below "
+                                     f"stall_torque ({self.stall_torque})")
+
+    @property
+    def _f(self) -> float:
+        return self.friction_torque / self.stall_torque
+
+    @property
+    def ideal_speed(self) -> float:
+        """w0 (rad/s): where the line alone reaches zero torque at full duty."""
+        return self.free_speed / (1.0 - self._f)
 
     def torque(self, duty: float, speed: float) -> float:
-        """Output torque (N·m) at ``duty`` (−1..1, clipped) and wheel ``speed`` (rad/s)."""
+        """Motor torque (N·m) at ``duty`` (−1..1, clipped) and wheel ``speed`` (rad/s), before friction."""
         d = max(-1.0, min(1.0, duty))
-        tau = self.stall_torque * (d - speed / self.free_speed)
+        tau = self.stall_torque * (d - speed / self.ideal_speed)
         return max(-self.stall_torque, min(self.stall_torque, tau))
 
-    def velocity_command(self, duty: float, speed: float) -> tuple[float, float]:
-        """(target speed rad/s, force limit N·m) for a velocity motor standing in for the line."""
+    def target_speed(self, duty: float) -> float:
+        """Speed (rad/s) where motor torque and friction balance (no other load)."""
         d = max(-1.0, min(1.0, duty))
-        return d * self.free_speed, abs(self.torque(d, speed))
+        return math.copysign(self.ideal_speed * max(abs(d) - self._f, 0.0), d)
+
+    def velocity_command(self, duty: float, speed: float) -> tuple[float, float]:
+        """(target speed rad/s, force limit N·m) for a velocity motor standing in for the model."""
+        target = self.target_speed(duty)
+        if speed == 0.0 and target == 0.0:
+            return 0.0, self.friction_torque          # at rest: friction holds
+        direction = math.copysign(1.0, speed) if speed != 0.0 else math.copysign(1.0, target)
+        net = self.torque(duty, speed) - self.friction_torque * direction
+        return target, abs(net)
 
     def steady_speed(self, duty: float, load_torque: float = 0.0) -> float:
-        """Speed (rad/s) where the motor torque balances ``load_torque`` (N·m, resisting)."""
+        """Forward speed (rad/s) where motor torque balances friction plus ``load_torque``
+        (N·m, resisting forward motion); 0 if the motor cannot overcome them."""
         d = max(-1.0, min(1.0, duty))
-        return (d - load_torque / self.stall_torque) * self.free_speed
+        return self.ideal_speed * max(d - (self.friction_torque + load_torque) / self.stall_torque, 0.0)
 
 
 def motor_from_joint_limits(effort: float | None, velocity: float | None) -> DcMotor:
     """A :class:`DcMotor` from a URDF wheel joint ``<limit effort velocity>`` (N·m, rad/s);
-    missing values fall back to the book's motor (18 kg·cm, 80 RPM)."""
-    return DcMotor(stall_torque=float(effort) if effort else BOOK_STALL_TORQUE,
-                   free_speed=float(velocity) if velocity else BOOK_FREE_SPEED)
+    missing values fall back to the book's motor (18 kg·cm, 80 RPM).  Friction is
+    the same fraction of the stall torque as the book motor's (3.6 %)."""
+    stall = float(effort) if effort else BOOK_STALL_TORQUE
+    return DcMotor(stall_torque=stall, free_speed=float(velocity) if velocity else BOOK_FREE_SPEED,
+                   friction_torque=BOOK_FRICTION / BOOK_STALL_TORQUE * stall)
 
 
 class FirmwareDrive:

@@ -95,21 +95,26 @@ class RayCaster:
     def _boxes(self, o: np.ndarray, d: np.ndarray, keep: np.ndarray) -> np.ndarray:
         rot, c, h = self._box_r[keep], self._box_c[keep], self._box_h[keep]
         lo = np.einsum("sji,sj->si", rot, o - c)        # (S, 3) origin in box frames
-        dt = np.ascontiguousarray(d.T)                   # (3, N)
-        tmin = np.zeros((rot.shape[0], d.shape[0]))
+        # float32 planes: half the memory traffic of float64 (the cost here is
+        # memory, not arithmetic); ~1 µm error at 8 m.  Origins stay float64
+        # (shape-local, so world coordinates far from 0 lose nothing).
+        dt = np.ascontiguousarray(d.T, dtype=np.float32)  # (3, N)
+        rot32 = rot.astype(np.float32)
+        lo32, h32 = lo.astype(np.float32), h.astype(np.float32)
+        tmin = np.zeros((rot.shape[0], d.shape[0]), np.float32)
         tmax = np.full_like(tmin, np.inf)
         # slab test one axis at a time on contiguous (S, N) planes: much faster
         # in numpy than reducing over a trailing axis of length 3
         for k in range(3):
-            ld = rot[:, :, k] @ dt                       # (S, N) direction component
+            ld = rot32[:, :, k] @ dt                     # (S, N) direction component
             ld[ld == 0.0] = 1e-12                        # avoid 0 * inf = nan
-            inv = 1.0 / ld
-            t1 = (-h[:, k:k + 1] - lo[:, k:k + 1]) * inv
-            t2 = (h[:, k:k + 1] - lo[:, k:k + 1]) * inv
+            inv = np.reciprocal(ld, out=ld)
+            t1 = (-h32[:, k:k + 1] - lo32[:, k:k + 1]) * inv
+            t2 = (h32[:, k:k + 1] - lo32[:, k:k + 1]) * inv
             np.maximum(tmin, np.minimum(t1, t2), out=tmin)
             np.minimum(tmax, np.maximum(t1, t2), out=tmax)
         tmin[tmax < tmin] = np.inf
-        return tmin.min(axis=0)
+        return tmin.min(axis=0).astype(float)
 
     def _cylinders(self, o: np.ndarray, d: np.ndarray, keep: np.ndarray) -> np.ndarray:
         rot, c = self._cyl_r[keep], self._cyl_c[keep]

@@ -59,6 +59,7 @@ class SimOptions:
     depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
     depth_coarse_stride: int = 8       # px between coarse samples outside the band
     sonar_rings: int = 2               # rings of 8 rays in the cone, plus the axis ray
+    solver_iterations: int = 20        # pybullet constraint-solver iterations per physics step
     drive: str = "plugin"              # plugin | firmware
     pty_link: str = ""                 # firmware mode: symlink to the emulated LaunchPad's pty ('' = none)
     battery_volts: float = 12.4        # firmware mode: battery voltage the board measures (V)
@@ -74,6 +75,8 @@ class SimOptions:
         for name in ("clock_rate", "joint_state_rate", "ground_truth_rate", "bumper_rate", "rgb_rate"):
             if getattr(self, name) < 0:
                 raise SimConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.solver_iterations < 1:
+            raise SimConfigError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
         if self.depth_band_rows < 1 or self.depth_coarse_stride < 1:
             raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
         if self.rgb_width < 1 or self.rgb_height < 1:
@@ -196,7 +199,8 @@ class Simulator:
         self.params = load_params(urdf_xml)
         self.world = world
         self.start = start
-        self.bullet = BulletSim(gui=gui, time_step=self.options.time_step)
+        self.bullet = BulletSim(gui=gui, time_step=self.options.time_step,
+                                solver_iterations=self.options.solver_iterations)
         self.bullet.load_world(world)
         self.bullet.load_robot(urdf_xml, start)
         p = self.params
@@ -288,6 +292,7 @@ class Simulator:
         events: list[Event] = []
         dt = self.options.time_step
         fw = self.firmware
+        next_due = min(self.s.due.values())
         for _ in range(n):
             if fw is None:
                 self._drive()
@@ -300,6 +305,8 @@ class Simulator:
                 ang, vel = self.bullet.joint_states(self._wheels)
                 self.s.wheel_speed = (float(vel[0]), float(vel[1]))
                 fw.after_physics(ang, self.s.time)
+            if self.s.time + 1e-9 < next_due:
+                continue  # most steps: no reading due
             for kind in SENSORS:
                 rate = self.rates[kind]
                 if rate <= 0 or self.s.time + 1e-9 < self.s.due[kind]:
@@ -328,6 +335,7 @@ class Simulator:
                     continue
                 if self.enabled[kind]:
                     events.append(Event(kind, self.s.time, self._read(kind)))
+            next_due = min(self.s.due.values())
         return events
 
     def run(self, duration: float, on_event: Callable[[Event], None] | None = None) -> None:
@@ -468,8 +476,8 @@ class Simulator:
             mask = np.ones(cam.height, bool)
             mask[self._band_rows] = False
             img[mask] = fill[mask]
-        if p.noise_stddev > 0:
-            img += self.rng.normal(0.0, p.noise_stddev, img.shape).astype(np.float32)
+        if p.noise_stddev > 0:  # float32 normals: ~2x cheaper for 19 200 pixels
+            img += self.rng.standard_normal(img.shape, dtype=np.float32) * np.float32(p.noise_stddev)
         img[~((img >= p.min_range) & (img <= p.max_range))] = np.nan
         return img
 

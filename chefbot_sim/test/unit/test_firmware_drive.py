@@ -26,7 +26,7 @@ STEPS_PER_S = 240
 
 # ------------------------------------------------------------------ motor model
 def test_motor_torque_speed_line():
-    m = DcMotor(stall_torque=2.0, free_speed=10.0)
+    m = DcMotor(stall_torque=2.0, free_speed=10.0, friction_torque=0.0)
     assert m.torque(1.0, 0.0) == pytest.approx(2.0)          # stall
     assert m.torque(1.0, 10.0) == pytest.approx(0.0)         # free speed
     assert m.torque(0.5, 2.5) == pytest.approx(0.5)          # on the line
@@ -34,26 +34,43 @@ def test_motor_torque_speed_line():
     assert m.torque(0.0, 5.0) == pytest.approx(-1.0)         # brake: opposes motion, proportional to speed
     assert m.torque(1.0, -10.0) == pytest.approx(2.0)        # clamped to the stall torque (current limit)
     assert m.torque(3.0, 0.0) == pytest.approx(2.0)          # duty clipped to 1
-
-
-def test_motor_velocity_command_and_steady_speed():
-    m = DcMotor(stall_torque=2.0, free_speed=10.0)
     assert m.velocity_command(0.5, 0.0) == pytest.approx((5.0, 1.0))
     assert m.velocity_command(0.5, 5.0) == pytest.approx((5.0, 0.0))    # at the target: no torque left
     assert m.velocity_command(0.0, -4.0) == pytest.approx((0.0, 0.8))   # braking a reversing wheel
     assert m.velocity_command(-2.0, 0.0) == pytest.approx((-10.0, 2.0))
-    assert m.steady_speed(1.0) == pytest.approx(10.0)
-    assert m.steady_speed(1.0, load_torque=1.0) == pytest.approx(5.0)
+
+
+def test_motor_friction():
+    m = DcMotor(stall_torque=2.0, free_speed=9.0, friction_torque=0.2)   # friction 10 % of stall
+    assert m.ideal_speed == pytest.approx(10.0)
+    assert m.target_speed(1.0) == pytest.approx(9.0)         # the datasheet's no-load speed
+    assert m.target_speed(-0.5) == pytest.approx(-4.0)
+    assert m.target_speed(0.05) == 0.0                        # dead band: friction wins
+    assert m.steady_speed(1.0) == pytest.approx(9.0)
+    assert m.steady_speed(1.0, load_torque=0.8) == pytest.approx(5.0)
+    assert m.steady_speed(0.3, load_torque=5.0) == 0.0
+    assert m.velocity_command(0.0, 0.0) == (0.0, 0.2)        # at rest: holds up to the friction torque
+    assert m.velocity_command(1.0, 0.0) == pytest.approx((9.0, 1.8))    # starts with stall - friction
+    assert m.velocity_command(0.0, 5.0) == pytest.approx((0.0, 1.2))    # brake + friction
+    assert m.velocity_command(1.0, 9.0) == pytest.approx((9.0, 0.0))    # balanced at the target
+    assert m.velocity_command(0.5, -1.0) == pytest.approx((4.0, 1.4))   # friction helps against reverse
 
 
 def test_motor_from_joint_limits_and_bad_values():
-    assert motor_from_joint_limits(1.5, 7.0) == DcMotor(1.5, 7.0)
-    assert motor_from_joint_limits(None, None) == DcMotor(BOOK_STALL_TORQUE, BOOK_FREE_SPEED)
+    assert motor_from_joint_limits(1.5, 7.0).stall_torque == 1.5
+    assert motor_from_joint_limits(1.5, 7.0).free_speed == 7.0
+    book = motor_from_joint_limits(None, None)
+    assert book == DcMotor()
+    assert (book.stall_torque, book.free_speed) == (BOOK_STALL_TORQUE, BOOK_FREE_SPEED)
+    assert motor_from_joint_limits(1.5, 7.0).friction_torque / 1.5 == pytest.approx(
+        book.friction_torque / book.stall_torque)
     assert BOOK_FREE_SPEED * 0.045 == pytest.approx(0.377, abs=1e-3)  # the book's 0.377 m/s top speed
     with pytest.raises(FirmwareDriveError, match="stall_torque"):
         DcMotor(stall_torque=0.0)
     with pytest.raises(FirmwareDriveError, match="free_speed"):
         DcMotor(free_speed=math.nan)
+    with pytest.raises(FirmwareDriveError, match="friction_torque"):
+        DcMotor(stall_torque=1.0, friction_torque=1.0)
 
 
 # ------------------------------------------------------------------ sim core
@@ -156,7 +173,7 @@ def test_drive_encoders_and_watchdog(fw_sim):
             link.send("s 512 512")
         sim.step()
         speeds.append(sim.ground_truth()["linear"][0])
-    expected = duty * sim.motor.free_speed * 0.045
+    expected = sim.motor.steady_speed(duty) * 0.045
     assert np.mean(speeds) == pytest.approx(expected, rel=0.08)
     assert sim.ground_truth()["x"] - x0 > 3.0 * 0.5 * expected
     # encoder edges from the physics' wheel angles, in the firmware's own counter
