@@ -19,7 +19,7 @@ import rostest
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
-from nav_msgs.msg import Path
+from nav_msgs.msg import OccupancyGrid, Path
 from nav_msgs.srv import GetPlan, GetPlanRequest
 from std_srvs.srv import Empty
 
@@ -194,6 +194,24 @@ class MoveBaseTest(unittest.TestCase):
             self.robot.publish_scan = True
         self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+
+    def test_n_rviz_simple_goal_topic(self) -> None:
+        pub = rospy.Publisher("move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
+        ps = make_goal(1.0, -0.3, -math.pi / 2).target_pose
+        pub.publish(ps)
+        wait_until(lambda: math.hypot(self.robot.pose.x - 1.0, self.robot.pose.y + 0.3) < 0.05
+                   and abs(wrap_angle(self.robot.pose.yaw + math.pi / 2)) < 0.05
+                   and self.robot.velocity() == (0.0, 0.0), WALL_TIMEOUT, "robot at the RViz goal")
+        pub.unregister()
+
+    def test_o_costmaps_published(self) -> None:
+        grid = rospy.wait_for_message("move_base/global_costmap/costmap", OccupancyGrid, 60.0)
+        self.assertEqual((grid.info.width, grid.info.height), (120, 80))
+        self.assertEqual(grid.header.frame_id, "map")
+        self.assertIn(100, grid.data)      # walls are lethal
+        self.assertIn(99, grid.data)       # inscribed ring
+        local = rospy.wait_for_message("move_base/local_costmap/costmap", OccupancyGrid, 60.0)
+        self.assertEqual((local.info.width, local.info.height), (60, 60))
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],
