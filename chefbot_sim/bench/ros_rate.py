@@ -1,0 +1,124 @@
+#!/usr/bin/env python3
+"""Sim-time rate of a chefbot_sim launch through ROS, on a private master.
+
+    python chefbot_sim/bench/ros_rate.py [--seconds 20] [launch args ...]
+    e.g. ... ros_rate.py --seconds 20 real_time_factor:=0
+         ... ros_rate.py drive:=firmware pty_link:=/tmp/bench_lp --drive-forward
+
+Starts ``roslaunch chefbot_sim chefbot_hotel_world.launch <args>`` with its own
+master on a free port (own session, so everything is stopped at the end),
+subscribes to /clock (which also makes the node publish it) and prints one
+JSON line: sim seconds per wall second over the window, and, with
+``--drive-forward``, the ground-truth and wheel-odometry distances while
+cmd_vel 0.2 m/s is published (to see whether the real-time driver chain keeps
+up).  Used by bench_sim.py in a child process (rospy cannot re-init).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def stop_group(proc: subprocess.Popen) -> None:
+    """SIGINT the launch's session (roslaunch stops its nodes), then SIGKILL what is left."""
+    for sig, grace in ((signal.SIGINT, 15.0), (signal.SIGKILL, 3.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=grace)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seconds", type=float, default=20.0, help="measuring window, wall s")
+    ap.add_argument("--warmup", type=float, default=30.0, help="longest wait for the sim to start, wall s")
+    ap.add_argument("--drive-forward", action="store_true", help="publish cmd_vel 0.2 m/s while measuring")
+    args, launch_args = ap.parse_known_args()
+    port = free_port()
+    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1")
+    proc = subprocess.Popen(["roslaunch", "-p", str(port), "chefbot_sim", "chefbot_hotel_world.launch",
+                             *launch_args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    os.environ.update(ROS_MASTER_URI=env["ROS_MASTER_URI"], ROS_HOSTNAME="127.0.0.1")
+    try:
+        import rospy
+        from geometry_msgs.msg import Twist
+        from nav_msgs.msg import Odometry
+        from rosgraph_msgs.msg import Clock
+
+        deadline = time.monotonic() + args.warmup
+        while True:  # the master comes up with roslaunch
+            try:
+                rospy.init_node("chefbot_sim_bench", anonymous=True, disable_signals=True)
+                break
+            except Exception:  # master not up yet
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
+        lock = threading.Lock()
+        last = {"clock": -1.0, "gt": None, "odom": None}
+
+        def on_clock(m: Clock) -> None:
+            with lock:
+                last["clock"] = m.clock.to_sec()
+
+        def pose(m: Odometry) -> tuple[float, float]:
+            return m.pose.pose.position.x, m.pose.pose.position.y
+
+        rospy.Subscriber("/clock", Clock, on_clock, tcp_nodelay=True)
+        rospy.Subscriber("ground_truth/odom", Odometry, lambda m: last.__setitem__("gt", pose(m)))
+        rospy.Subscriber("odom", Odometry, lambda m: last.__setitem__("odom", pose(m)))
+        cmd = rospy.Publisher("cmd_vel", Twist, queue_size=1)
+        while last["clock"] < 1.0 or (args.drive_forward and last["odom"] is None):
+            if time.monotonic() > deadline:
+                raise RuntimeError("the sim did not start (no /clock past 1 s, or no odom)")
+            time.sleep(0.1)
+        time.sleep(2.0)  # settle
+
+        def tick() -> None:
+            if args.drive_forward:
+                t = Twist()
+                t.linear.x = 0.2
+                cmd.publish(t)
+        tick()
+        with lock:
+            sim0, gt0, od0 = last["clock"], last["gt"], last["odom"]
+        wall0 = time.monotonic()
+        while time.monotonic() - wall0 < args.seconds:
+            tick()
+            time.sleep(0.1)
+        with lock:
+            sim1, gt1, od1 = last["clock"], last["gt"], last["odom"]
+        wall = time.monotonic() - wall0
+        out = {"sim_seconds": sim1 - sim0, "wall_seconds": wall, "x_real_time": (sim1 - sim0) / wall}
+        if args.drive_forward and gt0 and gt1 and od0 and od1:
+            out["ground_truth_m"] = math.dist(gt0, gt1)
+            out["odom_m"] = math.dist(od0, od1)
+        print(json.dumps(out), flush=True)
+        rospy.signal_shutdown("done")
+        return 0
+    finally:
+        stop_group(proc)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
