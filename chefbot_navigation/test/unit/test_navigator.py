@@ -131,3 +131,42 @@ def test_cancel_stops() -> None:
     nav.cancel()
     res = nav.step(0.1, Pose2D(-2.0, 0.0, 0.0))
     assert (res.v, res.w, res.state) == (0.0, 0.0, "idle")
+
+
+class StuckController:
+    """A controller that claims to follow but never moves the robot (forces oscillation)."""
+
+    def __init__(self) -> None:
+        self.resets = 0
+
+    def set_path(self, points, goal_yaw) -> None:
+        pass
+
+    def reset(self) -> None:
+        self.resets += 1
+
+    def compute(self, pose, t, costmap):
+        from chefbot_navigation.controller import Command
+        return Command(0.0, 0.0, "following")
+
+
+def test_oscillation_runs_recoveries_in_order_then_aborts() -> None:
+    layers = LayeredCostmap(room(), CostmapParams())
+    layers.mark_points(np.array([-3.0]), np.array([-3.0]))    # a scan obstacle for 'clear costmaps' to remove
+    nav = Navigator(NavigatorParams(oscillation_timeout=5.0), ControllerParams(),
+                    make_planner("dijkstra", PlannerParams()), StuckController(), layers)
+    nav.set_goal(Goal(-2.0, 3.5, 0.0), 0.0)
+    seen = []
+    res, pose, t = None, Pose2D(-2.0, -0.5, 0.0), 0.0
+
+    def hook(t: float, pose: Pose2D) -> None:
+        if nav.recovery and (not seen or seen[-1] != nav.recovery):
+            seen.append(nav.recovery)
+
+    res, pose, t = run(nav, pose, t_max=200.0, hook=hook)
+    assert res.outcome == "aborted"
+    assert "oscillating" in res.text and "exhausted" in res.text
+    assert seen == ["rotate", "back_off"] or seen == ["clear_costmaps", "rotate", "back_off"]
+    assert not layers.obstacles.any(), "clear_costmaps recovery did not clear"
+    # rotate recovery turned the robot about once around; back-off moved it backwards
+    assert pose.distance(Pose2D(-2.0, -0.5)) > 0.1
