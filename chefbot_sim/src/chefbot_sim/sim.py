@@ -453,6 +453,9 @@ class Simulator:
                 self._coarse = (rows, cols)
         self._dirs_exact = cam.rays(self._depth_rows, self._depth_cols)
         self._dirs_coarse = cam.rays(*self._coarse) if self._coarse is not None else None
+        # one cast per frame for both sets (a cast has ~0.3 ms of fixed cost)
+        self._dirs_all = (self._dirs_exact if self._dirs_coarse is None
+                          else np.vstack([self._dirs_exact, self._dirs_coarse]))
 
     def depth_image(self) -> np.ndarray:
         """Depth (m, along the optical axis) as float32 (H, W); NaN = no reading.
@@ -464,11 +467,13 @@ class Simulator:
         cam, p = self.depth_camera, self.params.depth_camera
         pos, rot = self.bullet.frame_pose(p.depth_frame)
         img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
-        t = self._caster.cast(pos, self._dirs_exact @ rot.T, p.max_range)
+        t_all = self._caster.cast(pos, self._dirs_all @ rot.T, p.max_range)
+        n_exact = len(self._dirs_exact)
+        t = t_all[:n_exact]
         img[self._depth_rows[0]:self._depth_rows[-1] + 1, :] = t.reshape(len(self._depth_rows), cam.width)
         if self._coarse is not None:
             rows, cols = self._coarse
-            tc = self._caster.cast(pos, self._dirs_coarse @ rot.T, p.max_range).reshape(len(rows), len(cols))
+            tc = t_all[n_exact:].reshape(len(rows), len(cols))
             stride = self.options.depth_coarse_stride
             ri = np.clip(np.arange(cam.height) // stride, 0, len(rows) - 1)
             ci = np.clip(np.arange(cam.width) // stride, 0, len(cols) - 1)
