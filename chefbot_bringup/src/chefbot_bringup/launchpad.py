@@ -132,7 +132,12 @@ class EncoderContinuity:
 
     ``max_ticks_per_s`` is the physical limit (top wheel speed × ticks per metre);
     a change larger than ``jump_factor`` × that × elapsed time (+ ``slack`` ticks)
-    is impossible and is absorbed instead of passed on.
+    is impossible. Such a reading is held back: if the next reading continues
+    from the old counters, it was a one-line glitch and is simply skipped (no
+    travel is lost); if the next reading continues from the jumped value, the
+    counters really moved (e.g. a reboot without hello) and tracking goes on
+    from there, without passing the jump itself on. Counters back near zero
+    after a hello line, or any jump that lands near zero, count as a reboot.
     """
 
     def __init__(self, max_ticks_per_s: float, jump_factor: float = 1.5, slack: int = 50,
@@ -143,38 +148,93 @@ class EncoderContinuity:
         self.jump_factor = jump_factor
         self.slack = slack
         self.reset_window = reset_window
-        self._raw: tuple[int, int] | None = None
+        self._raw: tuple[int, int] | None = None      # last accepted raw counters
+        self._t: float | None = None                  # and when (s); None = unknown (retimed)
         self._out: tuple[int, int] = (0, 0)
-        self._t: float | None = None
+        self._pending: tuple[tuple[int, int], float] | None = None   # held-back jumped reading
         self._expect_reset = False
+        self._unknown_gap: float | None = None
 
     def board_restarted(self) -> None:
         """The board said hello: its counters start again from zero."""
         self._expect_reset = True
 
+    def retime(self, max_gap: float = 1.0) -> None:
+        """The time base changed (port reopened, board clock restarted): the next interval is
+        unknown; judge it as if up to ``max_gap`` s (the link's silence limit) had passed."""
+        self._t = None
+        self._unknown_gap = max_gap
+        self._pending = None
+
+    def _limit(self, dt: float) -> float:
+        return self.jump_factor * self.max_ticks_per_s * dt + self.slack
+
+    def _accept(self, left: int, right: int, t: float, base: tuple[int, int]) -> tuple[int, int]:
+        dl, dr = wrap_int32(left - base[0]), wrap_int32(right - base[1])
+        self._raw, self._t, self._pending = (left, right), t, None
+        self._out = (wrap_int32(self._out[0] + dl), wrap_int32(self._out[1] + dr))
+        return self._out
+
     def update(self, left: int, right: int, t: float) -> tuple[tuple[int, int], EncoderEvent | None]:
         """Feed raw counters at time t (s); returns (published counters, event or None)."""
-        event = None
         if self._raw is None:
             self._raw, self._t = (left, right), t
             self._out = (left, right)
             return self._out, None
-        dl = wrap_int32(left - self._raw[0])
-        dr = wrap_int32(right - self._raw[1])
-        dt = max(t - self._t, 0.0) if self._t is not None else 0.0
-        limit = self.jump_factor * self.max_ticks_per_s * dt + self.slack
+        if self._t is None:
+            dt = self._unknown_gap or 0.0
+            self._unknown_gap = None
+        else:
+            dt = max(t - self._t, 0.0)
+        dl, dr = wrap_int32(left - self._raw[0]), wrap_int32(right - self._raw[1])
         near_zero = abs(left) <= self.reset_window and abs(right) <= self.reset_window
-        if self._expect_reset and near_zero:
+        expect_reset, self._expect_reset = self._expect_reset, False
+        if expect_reset and near_zero:
             event = EncoderEvent("reset", f"board restarted; counters {self._raw} -> ({left}, {right})")
-            dl = dr = 0
-        elif abs(dl) > limit or abs(dr) > limit:
-            kind = "reset" if near_zero else "jump"
-            event = EncoderEvent(kind, f"counters moved ({dl}, {dr}) ticks in {dt:.3f} s; limit {limit:.0f}")
-            dl = dr = 0
-        self._expect_reset = False
-        self._raw, self._t = (left, right), t
-        self._out = (wrap_int32(self._out[0] + dl), wrap_int32(self._out[1] + dr))
+            return self._accept(left, right, t, base=(left, right)), event
+        limit = self._limit(dt)
+        if abs(dl) <= limit and abs(dr) <= limit:
+            return self._accept(left, right, t, base=self._raw), None
+        if near_zero:   # a reboot without hello: counters start again from zero
+            event = EncoderEvent("reset", f"counters fell to ({left}, {right}) from {self._raw}")
+            return self._accept(left, right, t, base=(left, right)), event
+        if self._pending is not None:
+            (pl, pr), pt = self._pending
+            plimit = self._limit(max(t - pt, 0.0))
+            if abs(wrap_int32(left - pl)) <= plimit and abs(wrap_int32(right - pr)) <= plimit:
+                # the jump persisted: continue from the jumped value (the jump itself is not passed on)
+                return self._accept(left, right, t, base=(pl, pr)), None
+        self._pending = ((left, right), t)
+        event = EncoderEvent("jump", f"counters moved ({dl}, {dr}) ticks in {dt:.3f} s; limit {limit:.0f}; held back")
         return self._out, event
+
+
+class BoardClock:
+    """The board's 32-bit microsecond clock (``t`` lines), unwrapped into seconds.
+
+    Encoder speeds are judged on this clock, not on when lines reach the PC:
+    USB and a loaded PC deliver lines in bunches, and a simulated board may
+    run faster than real time, so host receive times would make legitimate
+    motion look like an impossible jump.
+    """
+
+    def __init__(self) -> None:
+        self._last: int | None = None
+        self._wraps = 0
+
+    def reset(self) -> None:
+        self._last = None
+        self._wraps = 0
+
+    def update(self, micros: int) -> float:
+        if self._last is not None and micros < self._last and self._last - micros > 2**31:
+            self._wraps += 1       # the counter wrapped (every 71.6 min)
+        self._last = micros
+        return (self._wraps * 2**32 + micros) * 1e-6
+
+    @property
+    def seconds(self) -> float | None:
+        return None if self._last is None else (self._wraps * 2**32 + self._last) * 1e-6
 
 
 @dataclass
@@ -215,6 +275,7 @@ class LaunchpadCore:
         # '*' would turn the token into a data field and the line would pass as
         # an old (book) firmware line with no integrity check at all.
         self.crc_required = False
+        self.board_clock = BoardClock()
         self._last_rx: float | None = None
         self._cmd = [0.0, 0.0]
         self._cmd_t = [float("-inf"), float("-inf")]
@@ -222,6 +283,8 @@ class LaunchpadCore:
     # ---- link
     def on_open(self, t: float) -> None:
         self.assembler.reset()
+        self.board_clock.reset()
+        self.encoders.retime(self.silence_timeout)
         self.crc_required = False  # the board on the other end may be a different firmware
         self.connected = True
         self._last_rx = t
@@ -267,10 +330,17 @@ class LaunchpadCore:
             if isinstance(msg, proto.Hello):
                 self.stats.hello = msg.fields
                 self.encoders.board_restarted()
+                self.board_clock.reset()   # its clock restarts too
+            elif isinstance(msg, proto.TimeStamp):
+                if self.board_clock.seconds is None:   # switching from host to board time
+                    self.encoders.retime(self.silence_timeout)
+                self.board_clock.update(msg.micros)
             elif isinstance(msg, proto.SpeedEcho):
                 self.stats.board_state = msg.state
             elif isinstance(msg, proto.Encoders):
-                (pl, pr), ev = self.encoders.update(msg.left, msg.right, t)
+                # board time when the board sends `t` lines (ours and the book's do), else host time
+                board_t = self.board_clock.seconds
+                (pl, pr), ev = self.encoders.update(msg.left, msg.right, t if board_t is None else board_t)
                 if ev is not None:
                     if ev.kind == "reset":
                         self.stats.encoder_resets += 1

@@ -130,9 +130,12 @@ def test_continuity_absorbs_reboot_and_jump() -> None:
     assert ev is not None and ev.kind == "reset" and (left, right) == (50100, -40100)
     (left, right), ev = c.update(30, -30, 0.25)
     assert ev is None and (left, right) == (50130, -40130)
-    # impossible jump: 1e6 ticks in 0.05 s (> 1.5 x 11200 ticks/s)
+    # impossible jump: 1e6 ticks in 0.05 s (> 1.5 x 11200 ticks/s): held back
     (left, right), ev = c.update(1_000_030, -30, 0.3)
     assert ev is not None and ev.kind == "jump" and (left, right) == (50130, -40130)
+    # it persists (the counters really moved): tracking goes on from the new value
+    (left, right), ev = c.update(1_000_130, 70, 0.35)
+    assert ev is None and (left, right) == (50230, -40030)
 
 
 def test_continuity_hello_marks_reset_even_when_small() -> None:
@@ -209,3 +212,53 @@ def test_core_rejects_bad_timeouts() -> None:
         LaunchpadCore(1.0, silence_timeout=0)
     with pytest.raises(ValueError, match="command_timeout"):
         LaunchpadCore(1.0, command_timeout=-1)
+
+
+# ------------------------------------------------------------------ board clock
+def test_board_clock_unwraps_the_32_bit_microsecond_counter() -> None:
+    from chefbot_bringup.launchpad import BoardClock
+    c = BoardClock()
+    assert c.seconds is None
+    assert c.update(2**32 - 1_000_000) == pytest.approx(4294.967296 - 1.0)
+    assert c.update(500_000) == pytest.approx(4294.967296 + 0.5)   # wrapped
+    c.reset()
+    assert c.update(10) == pytest.approx(10e-6)
+
+
+def test_encoder_speed_is_judged_on_the_board_clock_not_on_arrival_times() -> None:
+    """A board (or simulation) running 4x faster than the host clock at top wheel speed,
+    and lines arriving in bunches: nothing may be taken for an impossible jump."""
+    core = LaunchpadCore(max_ticks_per_s=11200)
+    core.on_open(0.0)
+    core.on_bytes(b"\n", 0.0)
+    ticks_per_cycle = int(11000 / 30)           # just under top speed, 30 status cycles per board second
+    micros, left = 1_000_000, 0
+    host_t = 0.0
+    for cycle in range(120):
+        micros += 33_333
+        left += ticks_per_cycle
+        host_t += 0.25 / 30 if cycle % 10 else 0.0   # 4x faster than real time, and bunched
+        core.on_bytes(with_crc(f"t\t{micros}\t0.033") + with_crc(f"e\t{left}\t{left}"), host_t)
+    assert core.stats.encoder_jumps == 0 and core.stats.encoder_resets == 0
+    assert core.stats.bad_total == 0
+
+
+def test_a_real_jump_is_still_caught_on_board_time_and_after_a_reopen() -> None:
+    core = LaunchpadCore(max_ticks_per_s=11200)
+    core.on_open(0.0)
+    core.on_bytes(b"\n" + with_crc("t\t1000000\t0.033") + with_crc("e\t5000\t5000"), 0.0)
+    core.on_bytes(with_crc("t\t1033333\t0.033") + with_crc("e\t5300\t5300"), 0.03)
+    core.on_bytes(with_crc("t\t1066666\t0.033") + with_crc("e\t905300\t5600"), 0.06)
+    assert core.stats.encoder_jumps == 1
+    # a one-line glitch: the next line continues from before it, nothing is lost or counted again
+    results = core.on_bytes(with_crc("t\t1100000\t0.033") + with_crc("e\t5900\t5900"), 0.09)
+    assert core.stats.encoder_jumps == 1
+    assert [extra[:2] for msg, extra in results if isinstance(msg, proto.Encoders)] == [(5900, 5900)]
+    # reopen: the first e line (host time) and the next (board time) must not fake a jump
+    core.on_close()
+    core.on_open(5.0)
+    results = core.on_bytes(b"\n" + with_crc("e\t5900\t5900") + with_crc("t\t9000000\t0.033")
+                            + with_crc("e\t6200\t6200"), 5.5)
+    assert core.stats.encoder_jumps == 1
+    published = [extra[:2] for msg, extra in results if isinstance(msg, proto.Encoders)]
+    assert published[-1][0] - published[0][0] == 300
