@@ -80,6 +80,12 @@ class KinematicRobot:
         with self.lock:
             self.obstacles[int(r0):int(r1) + 1, int(c0):int(c1) + 1] = True
 
+    def jump_back(self, seconds: float) -> None:
+        """Make sim time jump backwards (a restarted sim or bag)."""
+        with self.lock:
+            self.t -= seconds
+            self.cmd_time = -1e9
+
     def stop(self) -> None:
         self.running = False
         self.thread.join(2.0)

@@ -16,7 +16,7 @@ import unittest
 import actionlib
 import rospy
 import rostest
-from actionlib_msgs.msg import GoalStatus
+from actionlib_msgs.msg import GoalStatus, GoalStatusArray
 from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Path
@@ -212,6 +212,22 @@ class MoveBaseTest(unittest.TestCase):
         self.assertIn(99, grid.data)       # inscribed ring
         local = rospy.wait_for_message("move_base/local_costmap/costmap", OccupancyGrid, 60.0)
         self.assertEqual((local.info.width, local.info.height), (60, 60))
+
+    def test_p_time_jumping_back_mid_goal_recovers(self) -> None:
+        self.go(make_goal(0.0, 0.0, 0.0))
+        self.client.send_goal(make_goal(0.0, 2.0, 0.0))
+        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        self.robot.jump_back(3.0)
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
+        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+        self.assert_at(0.0, 2.0, 0.0)
+        # the periodic publishers survived the jump
+        grid = rospy.wait_for_message("move_base/local_costmap/costmap", OccupancyGrid, 30.0)
+        self.assertGreater(grid.header.stamp.to_sec(), self.robot.now - 5.0)
+        # ... and so did actionlib's periodic status (restarted by move_base)
+        t_after = self.robot.now
+        wait_until(lambda: rospy.wait_for_message("move_base/status", GoalStatusArray, 30.0).header.stamp.to_sec()
+                   > t_after, 60.0, "fresh move_base/status")
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],
