@@ -24,7 +24,8 @@ import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
-from chefbot_sim.world import Pose2D, Shape, World, rpy_to_matrix
+from chefbot_description.model import rpy_matrix
+from chefbot_sim.world import Pose2D, Shape, World
 
 TIME_STEP = 1.0 / 240.0
 # Constraint-solver iterations per step (pybullet's default is 50).  Measured in
@@ -438,7 +439,7 @@ def _origin(el: ET.Element | None) -> np.ndarray:
         return t
     xyz = [float(v) for v in el.get("xyz", "0 0 0").split()]
     rpy = [float(v) for v in el.get("rpy", "0 0 0").split()]
-    t[:3, :3] = rpy_to_matrix(*rpy)
+    t[:3, :3] = rpy_matrix(*rpy)
     t[:3, 3] = xyz
     return t
 

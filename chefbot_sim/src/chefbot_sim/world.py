@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from chefbot_description.model import rpy_matrix  # URDF/SDF fixed-axis convention, one implementation
+
 SHAPES = ("box", "cylinder", "sphere")
 DEFAULT_COLOUR = (0.75, 0.75, 0.75, 1.0)
 # SDF models that stand for the floor and the light; the simulator has its own floor.
@@ -71,7 +73,7 @@ class Shape:
 
     def rotation(self) -> np.ndarray:
         """3×3 rotation matrix from shape frame to world frame."""
-        return rpy_to_matrix(*self.rpy)
+        return rpy_matrix(*self.rpy)
 
     def half_extents(self) -> np.ndarray:
         """Half extents of the shape's own bounding box in its frame (m)."""
@@ -165,20 +167,8 @@ class World:
 
 
 # ------------------------------------------------------------------ rotations
-def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Rotation matrix for fixed-axis roll (x), pitch (y), yaw (z), as URDF/SDF use."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
 def matrix_to_rpy(m: np.ndarray) -> tuple[float, float, float]:
-    """Inverse of :func:`rpy_to_matrix` (pitch in [-pi/2, pi/2])."""
+    """Inverse of :func:`rpy_matrix` (pitch in [-pi/2, pi/2])."""
     pitch = math.asin(max(-1.0, min(1.0, -m[2, 0])))
     if abs(m[2, 0]) < 1.0 - 1e-9:
         roll = math.atan2(m[2, 1], m[2, 2])
@@ -333,7 +323,7 @@ def _sdf_pose(elem: ET.Element | None, where: str) -> np.ndarray:
     if p is None:
         return t
     x, y, z, r, pi, ya = _floats(p.text, 6, f"{where}/pose")
-    t[:3, :3] = rpy_to_matrix(r, pi, ya)
+    t[:3, :3] = rpy_matrix(r, pi, ya)
     t[:3, 3] = (x, y, z)
     return t
 
