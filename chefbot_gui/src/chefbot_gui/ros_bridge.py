@@ -44,7 +44,7 @@ _OUTCOMES = {
 class BridgeParams:
     """Names and timings of the bridge (see the package README for the ROS params).
 
-    ``server_poll_s``: how long one ``wait_for_server`` call may wait (s);
+    ``server_poll_s``: how often the watcher looks for the server while it is missing (s);
     ``status_timeout_s``: action status older than this means the server is gone (s)
     (action servers publish status at 5 Hz); ``pose_period_s``: tf poll period (s).
     """
@@ -187,9 +187,7 @@ class RosBridge(QObject):
         connected: bool | None = None
         next_pose = 0.0
         while not self._stop.is_set() and not rospy.is_shutdown():
-            ok = self._client.wait_for_server(rospy.Duration(self.p.server_poll_s))
-            # a killed server's connections can linger a moment; its status stream stops at once
-            ok = ok and time.monotonic() - self._last_status < self.p.status_timeout_s
+            ok = self._server_alive()
             if ok != connected:
                 connected = ok
                 rospy.loginfo("chefbot_gui: navigation server %s", "connected" if ok else "not connected")
@@ -198,7 +196,19 @@ class RosBridge(QObject):
             if now >= next_pose:
                 next_pose = now + self.p.pose_period_s
                 self._poll_tf()
-            self._stop.wait(self.p.pose_period_s if ok else 0.05)
+            self._stop.wait(self.p.pose_period_s if ok else min(self.p.server_poll_s, self.p.pose_period_s))
+
+    def _server_alive(self) -> bool:
+        """Is the action server there? Wall-clock and never blocking.
+
+        Not actionlib's ``wait_for_server``: its timeout counts ROS time, which stands
+        still with the simulation's /clock, so if the whole simulation died this thread
+        would wait forever and the window would keep saying "connected". Instead: the
+        server's status stream (5 Hz) is fresh, and it is subscribed to our goals (a
+        killed server's connections can linger a moment; its status stops at once).
+        """
+        fresh = time.monotonic() - self._last_status < self.p.status_timeout_s
+        return fresh and self._client.action_client.pub_goal.get_num_connections() > 0
 
     def _poll_tf(self) -> None:
         try:
