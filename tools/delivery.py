@@ -89,11 +89,13 @@ class DeliveryClient:
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise TimeoutError("no ground_truth/odom from the simulator")
             time.sleep(0.05)
-        left = max(1.0, deadline - time.monotonic())
-        # wait_for_server counts ROS time, which stands still until /clock runs: poll in wall time
-        while not self.client.wait_for_server(rospy.Duration(0.5)):
+        # Not actionlib's wait_for_server: its timeout counts ROS time, which stands still until
+        # (and whenever) the simulation's /clock does, so it could block past any deadline.
+        ac = self.client.action_client
+        while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0:
             if time.monotonic() > deadline or rospy.is_shutdown():
-                raise TimeoutError(f"move_base action server not up after {left:.0f} s")
+                raise TimeoutError("move_base action server not up")
+            time.sleep(0.05)
         rospy.wait_for_service("move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
         self.make_plan = rospy.ServiceProxy("move_base/make_plan", GetPlan)
 
@@ -126,12 +128,13 @@ class DeliveryClient:
             bumps0 = self.bumps
         t0 = rospy.Time.now()
         self.client.send_goal(goal)
-        finished = False
+        # Poll the goal state against a wall-clock deadline: wait_for_result's timeout counts
+        # ROS time, which would not run out if the simulation (and its /clock) stalled.
         deadline = time.monotonic() + timeout_wall
+        finished = False
         while not finished and time.monotonic() < deadline and not rospy.is_shutdown():
-            finished = self.client.wait_for_result(rospy.Duration(0.2)) or \
-                self.client.get_state() not in (GoalStatus.PENDING, GoalStatus.ACTIVE)
-            # wait_for_result's duration is ROS (sim) time: the wall deadline bounds a stalled sim
+            time.sleep(0.05)
+            finished = self.client.get_state() not in (GoalStatus.PENDING, GoalStatus.ACTIVE)
         if not finished:
             self.client.cancel_goal()
             state, text = "TIMEOUT", f"no result within {timeout_wall:.0f} s wall time"
