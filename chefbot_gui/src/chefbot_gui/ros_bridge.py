@@ -2,7 +2,7 @@
 
 Every ROS callback runs in a rospy thread and only *emits a Qt signal*; the
 window's slots (GUI thread) feed the presenter.  Nothing here blocks the GUI
-thread: ``wait_for_server`` (with a timeout) and the tf look-ups run in a
+thread: the server check (wall clock, never blocking) and the tf look-ups run in a
 watcher thread; ``send_goal``/``cancel_goal`` only publish.
 
 No widget code here: the bridge is a ``QObject`` so it can own signals.
