@@ -1,16 +1,16 @@
 """Glue between the ROS bridge, the presenter and the window; parameters; screenshots.
 
-No rospy here: the node script reads the ROS parameters into a dict and calls
-:func:`GuiParams.from_dict`, which validates them with messages naming the
-parameter.
+No rospy here: the node script reads the ROS parameters with the workspace's
+shared reader (``chefbot_bringup.params.read_config``, which checks types and
+names the parameter in its errors) into :class:`GuiParams`, whose own checks
+cover the values.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
 
 from PyQt5.QtCore import QObject, Qt, QTimer
 from PyQt5.QtWidgets import QWidget
@@ -18,10 +18,6 @@ from PyQt5.QtWidgets import QWidget
 from chefbot_gui.presenter import OrderMode
 
 ORDER_NAMES = {"in_order": OrderMode.FIFO, "nearest_first": OrderMode.NEAREST}
-
-
-class ParamError(ValueError):
-    """An invalid GUI parameter; the message names it."""
 
 
 @dataclass(frozen=True)
@@ -46,31 +42,26 @@ class GuiParams:
     nominal_speed: float = 0.3
     order: str = "in_order"
 
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type == "float" and not math.isfinite(v):
+                raise ValueError(f"{f.name} must be a finite number, got {v!r}")
+            if f.type == "str" and f.name != "tables_file" and not v.strip():
+                raise ValueError(f"{f.name} must be a non-empty string, got {v!r}")
+        if self.server_timeout <= 0:
+            raise ValueError(f"server_timeout must be > 0 s, got {self.server_timeout}")
+        if self.wait_time < 0:
+            raise ValueError(f"wait_time must be >= 0 s, got {self.wait_time}")
+        if self.nominal_speed <= 0:
+            raise ValueError(f"nominal_speed must be > 0 m/s, got {self.nominal_speed}")
+        if self.order not in ORDER_NAMES:
+            raise ValueError(f"order must be one of {sorted(ORDER_NAMES)}, got {self.order!r}")
+
     @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> GuiParams:
-        """Build from a ``{name: value}`` mapping (unknown names ignored), validating each value."""
-        kwargs: dict[str, Any] = {}
-        for f in fields(cls):
-            if f.name not in values:
-                continue
-            v = values[f.name]
-            if f.type == "float":
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise ParamError(f"~{f.name}: expected a number, got {v!r}")
-                v = float(v)
-            elif not isinstance(v, str) or not v.strip():
-                raise ParamError(f"~{f.name}: expected a non-empty string, got {v!r}")
-            kwargs[f.name] = v
-        p = cls(**kwargs)
-        if p.server_timeout <= 0:
-            raise ParamError(f"~server_timeout: must be > 0 s, got {p.server_timeout}")
-        if p.wait_time < 0:
-            raise ParamError(f"~wait_time: must be >= 0 s, got {p.wait_time}")
-        if p.nominal_speed <= 0:
-            raise ParamError(f"~nominal_speed: must be > 0 m/s, got {p.nominal_speed}")
-        if p.order not in ORDER_NAMES:
-            raise ParamError(f"~order: must be one of {sorted(ORDER_NAMES)}, got {p.order!r}")
-        return p
+    def param_names(cls) -> dict[str, str]:
+        """Field → private ROS parameter, for ``chefbot_bringup.params.read_config``."""
+        return {f.name: "~" + f.name for f in fields(cls)}
 
     @property
     def order_mode(self) -> OrderMode:
