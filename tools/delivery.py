@@ -24,6 +24,8 @@ from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
 from std_msgs.msg import Bool
 
+from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+
 MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
 
 
@@ -50,14 +52,6 @@ class Leg:
 
     def as_dict(self) -> dict:
         return asdict(self)
-
-
-def yaw_quaternion(yaw: float) -> Quaternion:
-    return Quaternion(0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
-
-
-def yaw_of(q) -> float:
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
 class DeliveryClient:
@@ -108,7 +102,7 @@ class DeliveryClient:
         goal = PoseStamped()
         goal.header.frame_id = "map"
         goal.pose.position.x, goal.pose.position.y = x, y
-        goal.pose.orientation = yaw_quaternion(yaw)
+        goal.pose.orientation = Quaternion(*quaternion_from_yaw(yaw))
         try:
             plan = self.make_plan(start=start, goal=goal, tolerance=0.0).plan.poses
         except rospy.ServiceException:
@@ -123,7 +117,7 @@ class DeliveryClient:
         goal.target_pose.header.frame_id = "map"
         goal.target_pose.header.stamp = rospy.Time.now()
         goal.target_pose.pose.position.x, goal.target_pose.pose.position.y = x, y
-        goal.target_pose.pose.orientation = yaw_quaternion(yaw)
+        goal.target_pose.pose.orientation = Quaternion(*quaternion_from_yaw(yaw))
         with self._lock:
             bumps0 = self.bumps
         t0 = rospy.Time.now()
@@ -146,6 +140,6 @@ class DeliveryClient:
             p = self.truth.pose.pose
             bumps = self.bumps - bumps0
         xy = math.hypot(p.position.x - x, p.position.y - y)
-        dyaw = abs(math.remainder(yaw_of(p.orientation) - yaw, 2 * math.pi))
+        dyaw = abs(math.remainder(yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw")) - yaw, 2 * math.pi))
         return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
                    seconds=seconds, limit_s=planned / MAX_SPEED, xy_error=xy, yaw_error=dyaw, bumps=bumps)

@@ -91,7 +91,7 @@ def main() -> int:
         import rosgraph
         import rospy
 
-        from chefbot_sim.world import load_tables
+        from chefbot_common.tables import load_tables
         sys.path.insert(0, str(ROOT / "tools"))
         from delivery import DeliveryClient
 

@@ -11,7 +11,7 @@ import rospy
 import rostest
 from move_base_msgs.msg import MoveBaseAction
 
-from chefbot_sim.world import load_tables
+from chefbot_common.tables import load_tables
 
 
 class RobotGuiLaunchTest(unittest.TestCase):

@@ -23,8 +23,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
 
+from chefbot_common.map_io import load_map  # noqa: E402
 from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap  # noqa: E402
-from chefbot_navigation.map_io import load_map  # noqa: E402
 from chefbot_navigation.maps_gen import office_map  # noqa: E402
 from chefbot_navigation.planners import PlannerParams, cell_costs, make_planner  # noqa: E402
 from chefbot_navigation.reference import exact_cost, grid_graph  # noqa: E402

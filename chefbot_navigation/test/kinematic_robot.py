@@ -20,8 +20,8 @@ from geometry_msgs.msg import Twist
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import OccupancyMap
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import OccupancyMap
 from chefbot_navigation.ros_io import pose2d_to_transform
 
 DT = 0.01               # s of sim time per step

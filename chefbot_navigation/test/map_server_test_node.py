@@ -14,7 +14,7 @@ import rostest
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
 
-from chefbot_navigation.map_io import load_map
+from chefbot_common.map_io import load_map
 from chefbot_navigation.ros_io import msg_to_occupancy
 
 PKG = "chefbot_navigation"

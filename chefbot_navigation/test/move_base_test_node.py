@@ -26,8 +26,8 @@ from std_srvs.srv import Empty
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from kinematic_robot import KinematicRobot
 
-from chefbot_navigation.geometry import Pose2D, quaternion_from_yaw, wrap_angle
-from chefbot_navigation.map_io import load_map
+from chefbot_common.geometry import Pose2D, quaternion_from_yaw, wrap_angle
+from chefbot_common.map_io import load_map
 
 PKG = "chefbot_navigation"
 WALL_TIMEOUT = 240.0    # s, upper bound for one goal on a loaded machine

@@ -21,8 +21,8 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Bool, String
 
-from chefbot_navigation.geometry import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
-from chefbot_sim.world import load_tables
+from chefbot_common.geometry import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
+from chefbot_common.tables import load_tables
 
 PKG = "chefbot_navigation"
 WALL_TIMEOUT = 600.0

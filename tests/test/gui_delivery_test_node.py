@@ -19,7 +19,7 @@ from move_base_msgs.msg import MoveBaseActionGoal, MoveBaseActionResult
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
 
-from chefbot_sim.world import load_tables
+from chefbot_common.tables import load_tables
 
 XY_TOL = 0.05   # m, against ground truth
 WAIT_S = 300.0  # wall time for the whole tour on a loaded machine

@@ -33,15 +33,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from chefbot_bringup.encoder import EncoderRange, TickUnwrapper
+from chefbot_common.geometry import wrap_angle
 
 # Variance reported for the pose/twist components a planar robot cannot
 # observe (z, roll, pitch): large so that filters ignore them.
 UNOBSERVED_VAR = 1e6
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to [-pi, pi) (rad)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def integrate_arc(x: float, y: float, theta: float, dl: float, dr: float,

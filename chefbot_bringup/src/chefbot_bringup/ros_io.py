@@ -5,8 +5,6 @@ message packages; time stamps are passed in by the caller.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from geometry_msgs.msg import Quaternion, TransformStamped
 from nav_msgs.msg import Odometry
@@ -14,18 +12,19 @@ from sensor_msgs.msg import CameraInfo, Image, LaserScan
 
 from chefbot_bringup.depth_scan import Intrinsics, Scan
 from chefbot_bringup.odometry import OdometryState
+from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
 
 _DEPTH_DTYPES = {"32FC1": np.float32, "16UC1": np.uint16, "mono16": np.uint16}
 
 
 def yaw_to_quaternion(yaw: float) -> Quaternion:
-    """Quaternion for a rotation of ``yaw`` rad about +z."""
-    return Quaternion(0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw))
+    """Quaternion message for a rotation of ``yaw`` rad about +z."""
+    return Quaternion(*quaternion_from_yaw(yaw))
 
 
 def quaternion_to_yaw(q: Quaternion) -> float:
-    """Yaw (rad) of a quaternion (ZYX convention)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Yaw (rad) of a quaternion message (zero quaternion -> 0; non-finite raises QuaternionError)."""
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity")
 
 
 def image_to_depth(msg: Image) -> np.ndarray:

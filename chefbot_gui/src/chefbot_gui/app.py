@@ -1,7 +1,7 @@
 """Glue between the ROS bridge, the presenter and the window; parameters; screenshots.
 
 No rospy here: the node script reads the ROS parameters with the workspace's
-shared reader (``chefbot_bringup.params.read_config``, which checks types and
+shared reader (``chefbot_common.params.read_config``, which checks types and
 names the parameter in its errors) into :class:`GuiParams`, whose own checks
 cover the values.
 """
@@ -60,7 +60,7 @@ class GuiParams:
 
     @classmethod
     def param_names(cls) -> dict[str, str]:
-        """Field → private ROS parameter, for ``chefbot_bringup.params.read_config``."""
+        """Field → private ROS parameter, for ``chefbot_common.params.read_config``."""
         return {f.name: "~" + f.name for f in fields(cls)}
 
     @property

@@ -1,4 +1,4 @@
-"""Planar geometry for the delivery GUI: quaternions, route progress, map pixels.
+"""Planar geometry for the delivery GUI: route progress, map pixels (quaternions: chefbot_common.geometry).
 
 Pure Python (no ROS, no Qt) so it is unit-tested without a master or a display.
 Units: metres, radians, seconds.  All poses are in the ``map`` frame.
@@ -10,21 +10,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 Point = tuple[float, float]
-
-
-def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
-    """Unit quaternion ``(x, y, z, w)`` of a rotation by ``yaw`` rad about z.
-
-    The book sent all-zero quaternions, which move_base rejects as invalid;
-    this is always normalised.
-    """
-    half = 0.5 * yaw
-    return 0.0, 0.0, math.sin(half), math.cos(half)
-
-
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
-    """Yaw (rad) of a quaternion; tolerates non-normalised input."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def distance(a: Point, b: Point) -> float:

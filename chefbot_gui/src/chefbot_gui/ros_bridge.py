@@ -27,6 +27,7 @@ from nav_msgs.msg import OccupancyGrid, Path
 from PyQt5.QtCore import QObject, pyqtSignal
 from sensor_msgs.msg import BatteryState
 
+from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
 from chefbot_gui import geometry
 from chefbot_gui.presenter import Destination, Outcome
 
@@ -70,7 +71,7 @@ def goal_message(dest: Destination, frame: str, stamp: rospy.Time) -> MoveBaseGo
     goal.target_pose.pose.position.x = float(dest.pose.x)
     goal.target_pose.pose.position.y = float(dest.pose.y)
     q = goal.target_pose.pose.orientation
-    q.x, q.y, q.z, q.w = geometry.yaw_to_quaternion(float(dest.pose.yaw))
+    q.x, q.y, q.z, q.w = quaternion_from_yaw(float(dest.pose.yaw))
     return goal
 
 
@@ -78,7 +79,8 @@ def grid_from_message(msg: OccupancyGrid) -> tuple[bytes, geometry.GridInfo]:
     """Grey image bytes and placement of an ``OccupancyGrid`` (done off the GUI thread)."""
     info = msg.info
     o = info.origin
-    yaw = geometry.quaternion_to_yaw(o.orientation.x, o.orientation.y, o.orientation.z, o.orientation.w)
+    q = o.orientation
+    yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity")
     grid = geometry.GridInfo(info.resolution, info.width, info.height, o.position.x, o.position.y, yaw)
     return geometry.grid_to_grey(msg.data, info.width, info.height), grid
 
@@ -217,7 +219,7 @@ class RosBridge(QObject):
             return
         tr, q = t.transform.translation, t.transform.rotation
         self._last_tf_pose = time.monotonic()
-        self.robotPose.emit(tr.x, tr.y, geometry.quaternion_to_yaw(q.x, q.y, q.z, q.w))
+        self.robotPose.emit(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity"))
 
     def _tf_fresh(self) -> bool:
         return time.monotonic() - self._last_tf_pose < 1.0
@@ -249,13 +251,13 @@ class RosBridge(QObject):
             return
         o = pose.pose.orientation
         self.robotPose.emit(pose.pose.position.x, pose.pose.position.y,
-                            geometry.quaternion_to_yaw(o.x, o.y, o.z, o.w))
+                            yaw_from_quaternion(o.x, o.y, o.z, o.w, zero_policy="identity"))
 
     def _on_amcl(self, msg: PoseWithCovarianceStamped) -> None:
         if self._tf_fresh():
             return
         p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        self.robotPose.emit(p.x, p.y, geometry.quaternion_to_yaw(o.x, o.y, o.z, o.w))
+        self.robotPose.emit(p.x, p.y, yaw_from_quaternion(o.x, o.y, o.z, o.w, zero_policy="identity"))
 
     def _on_plan(self, msg: Path) -> None:
         frame = msg.header.frame_id.lstrip("/")

@@ -176,11 +176,11 @@ class Gui:
 def make_gui(ros_node: None, qtbot) -> Iterator[Callable[..., Gui]]:
     """Factory: a window + presenter + ROS bridge in a fresh namespace (no crosstalk
     between tests in this process); everything shut down after the test."""
+    from chefbot_common.tables import load_tables
     from chefbot_gui.app import wire
     from chefbot_gui.presenter import DeliveryPresenter
     from chefbot_gui.ros_bridge import BridgeParams, RosBridge
     from chefbot_gui.window import RobotGuiWindow
-    from chefbot_sim.world import load_tables
 
     made: list[Gui] = []
 

@@ -8,15 +8,6 @@ import pytest
 from chefbot_gui import geometry as g
 
 
-@pytest.mark.parametrize("yaw", [0.0, 0.3, math.pi / 2, -2.5, math.pi, 7.0])
-def test_yaw_quaternion_is_unit_and_round_trips(yaw: float) -> None:
-    q = g.yaw_to_quaternion(yaw)
-    assert math.isclose(sum(c * c for c in q), 1.0, rel_tol=1e-12)
-    assert q[0] == q[1] == 0.0
-    back = g.quaternion_to_yaw(*q)
-    assert math.isclose(math.remainder(back - yaw, 2 * math.pi), 0.0, abs_tol=1e-9)
-
-
 def test_remaining_without_plan_is_straight_line() -> None:
     assert g.remaining_distance((0, 0), (3, 4)) == pytest.approx(5.0)
     assert g.remaining_distance((0, 0), (3, 4), [(1, 1)]) == pytest.approx(5.0)

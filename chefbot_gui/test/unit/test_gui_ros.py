@@ -14,8 +14,8 @@ import pytest
 from conftest import TABLES, FakeMoveBase
 from PyQt5.QtCore import Qt
 
+from chefbot_common.tables import load_tables
 from chefbot_gui.app import save_screenshot
-from chefbot_sim.world import load_tables
 
 T = 15_000  # ms: generous for a loaded 2-core CI machine
 POSES = load_tables(TABLES)

@@ -25,8 +25,8 @@ from typing import Protocol
 
 import numpy as np
 
+from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_navigation.costmap import INSCRIBED, Costmap
-from chefbot_navigation.geometry import Pose2D, wrap_angle
 
 
 @dataclass(frozen=True)

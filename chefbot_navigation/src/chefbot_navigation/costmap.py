@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
 
 FREE_SPACE = 0
 INSCRIBED = 253

@@ -7,7 +7,7 @@ map_T_odom = map_T_base * inverse(odom_T_base).
 """
 from __future__ import annotations
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 
 
 def map_to_odom(map_T_base: Pose2D, odom_T_base: Pose2D) -> Pose2D:

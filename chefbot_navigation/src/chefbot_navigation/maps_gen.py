@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_common.grid import GridInfo, OccupancyMap
 
 
 def office_map(size: int = 1200, resolution: float = 0.05, room: float = 6.0, door: float = 1.0,

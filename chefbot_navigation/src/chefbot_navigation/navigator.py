@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_navigation.controller import ControllerParams, LocalController
 from chefbot_navigation.costmap import INSCRIBED, LayeredCostmap
-from chefbot_navigation.geometry import Pose2D, wrap_angle
 from chefbot_navigation.planners import GlobalPlanner, Plan, PlanningError
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")

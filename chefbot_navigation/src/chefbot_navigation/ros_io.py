@@ -10,8 +10,8 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TransformStamped
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
 
-from chefbot_navigation.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
-from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
+from chefbot_common.grid import GridInfo, OccupancyMap
 
 
 def yaw_to_quaternion(yaw: float) -> Quaternion:

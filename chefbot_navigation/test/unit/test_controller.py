@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.controller import ControllerParams, RegulatedPurePursuit, make_controller
 from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import GridInfo, OccupancyMap
 from chefbot_navigation.planners import PlannerParams, make_planner
 
 DT = 0.1   # s, 10 Hz controller

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, CostmapParams, LayeredCostmap, inflate
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import GridInfo, OccupancyMap
 
 
 def empty(n: int = 100, res: float = 0.05) -> OccupancyMap:

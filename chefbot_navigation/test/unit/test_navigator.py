@@ -5,10 +5,10 @@ import math
 
 import numpy as np
 
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.controller import ControllerParams, make_controller
 from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import GridInfo, OccupancyMap
 from chefbot_navigation.navigator import Goal, Navigator, NavigatorParams
 from chefbot_navigation.planners import PlannerParams, make_planner
 

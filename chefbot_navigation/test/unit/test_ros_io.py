@@ -10,8 +10,8 @@ nav_msgs = pytest.importorskip("nav_msgs.msg")
 
 import genpy  # noqa: E402
 
-from chefbot_navigation.geometry import Pose2D  # noqa: E402
-from chefbot_navigation.grid import GridInfo, OccupancyMap  # noqa: E402
+from chefbot_common.geometry import Pose2D  # noqa: E402
+from chefbot_common.grid import GridInfo, OccupancyMap  # noqa: E402
 from chefbot_navigation.ros_io import (  # noqa: E402
     msg_to_occupancy,
     occupancy_to_msg,

@@ -24,8 +24,9 @@ import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
+from chefbot_common.geometry import Pose2D
 from chefbot_description.model import rpy_matrix
-from chefbot_sim.world import Pose2D, Shape, World
+from chefbot_sim.world import Shape, World
 
 TIME_STEP = 1.0 / 240.0
 # Constraint-solver iterations per step (pybullet's default is 50).  Measured in

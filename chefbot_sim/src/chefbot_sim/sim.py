@@ -29,10 +29,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim.bullet import BulletSim
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
-from chefbot_sim.world import Pose2D, Shape, World
+from chefbot_sim.world import Shape, World
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
@@ -160,11 +161,6 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
         q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
     q = np.array(q)
     return -q if q[3] < 0 else q
-
-
-def yaw_of(q: np.ndarray) -> float:
-    x, y, z, w = q
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 @dataclass
@@ -372,7 +368,7 @@ class Simulator:
         pos, quat, lin, ang = self.bullet.base_state()
         rot = quat_to_matrix(quat)
         return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
-                "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_of(quat)}
+                "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_from_quaternion(*quat)}
 
     def _odom(self) -> dict:
         d = self.params.drive

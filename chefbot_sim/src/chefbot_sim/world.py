@@ -39,16 +39,7 @@ IGNORED_SDF_MODELS = ("ground_plane", "sun")
 
 
 class WorldError(ValueError):
-    """A world or tables file is invalid; the message names the file and the element."""
-
-
-@dataclass(frozen=True)
-class Pose2D:
-    """A planar pose in the world (``map``) frame: x, y in m, yaw in rad."""
-
-    x: float
-    y: float
-    yaw: float = 0.0
+    """A world file is invalid; the message names the file and the element."""
 
 
 @dataclass(frozen=True)
@@ -444,50 +435,3 @@ def _sdf_geometry(geom: ET.Element | None, scale: np.ndarray, where: str) -> tup
             raise WorldError(f"{gw}: radius must be positive, got {r}")
         return "sphere", (float(r),)
     raise WorldError(f"{gw}: unsupported geometry (only box, cylinder, sphere, plane)")
-
-
-# ------------------------------------------------------------------ tables
-def load_tables(path: str | Path) -> dict[str, Pose2D]:
-    """Load the named delivery poses (``home``, ``table_1`` ...) of a tables YAML.
-
-    Format::
-
-        frame: map
-        poses:
-          home:    {x: 0.0, y: 0.0, yaw: 0.0}
-          table_1: {x: 2.05, y: -3.0, yaw: 0.0}
-
-    ``yaw`` in rad (default 0).  ``home`` is required; names are unique by YAML
-    construction.  Raises :class:`WorldError` naming the file and the entry.
-    """
-    path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as e:
-        raise WorldError(f"{path}: cannot read tables file: {e.strerror}") from e
-    except yaml.YAMLError as e:
-        raise WorldError(f"{path}: invalid YAML: {e}") from e
-    if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):
-        raise WorldError(f"{path}: expected a mapping with a 'poses' mapping")
-    unknown = set(data) - {"frame", "world", "poses"}
-    if unknown:
-        raise WorldError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
-    frame = data.get("frame", "map")
-    if frame != "map":
-        raise WorldError(f"{path}: frame must be 'map', got {frame!r}")
-    out: dict[str, Pose2D] = {}
-    for name, p in data["poses"].items():
-        where = f"{path}: poses.{name}"
-        if not isinstance(p, dict):
-            raise WorldError(f"{where}: expected a mapping {{x, y, yaw}}, got {p!r}")
-        unknown = set(p) - {"x", "y", "yaw"}
-        if unknown:
-            raise WorldError(f"{where}: unknown key(s) {sorted(unknown)}")
-        for key in ("x", "y"):
-            if key not in p:
-                raise WorldError(f"{where}: missing field '{key}'")
-        out[str(name)] = Pose2D(_number(p["x"], f"{where}.x"), _number(p["y"], f"{where}.y"),
-                                _number(p.get("yaw", 0.0), f"{where}.yaw"))
-    if "home" not in out:
-        raise WorldError(f"{path}: missing the 'home' pose")
-    return out

@@ -223,7 +223,7 @@ def test_sonar_reaches_the_firmware(urdf):
 
 
 def test_teleport_and_reset_send_no_encoder_edges(fw_sim):
-    from chefbot_sim.world import Pose2D
+    from chefbot_common.geometry import Pose2D
     sim, link = fw_sim
     drive_with_commands(sim, link, 400, 400, 1.0)
     sim.step(STEPS_PER_S)  # watchdog stop

@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
+from chefbot_common.geometry import Pose2D
 from chefbot_sim.bullet import BulletError, BulletSim
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.sim import CameraModel, Pacer, SimConfigError, SimOptions, Simulator
-from chefbot_sim.world import Pose2D, Shape, World, parse_yaml_world
+from chefbot_sim.world import Shape, World, parse_yaml_world
 
 WALL = parse_yaml_world("objects: [{name: wall, shape: box, size: [0.2, 4.0, 1.0], pose: [3.0, 0.0, 0.0]}]")
 DEPTH_X = 0.1615   # m, camera_depth_frame ahead of base_footprint in chefbot.xacro

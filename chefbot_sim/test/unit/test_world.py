@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from chefbot_sim.world import WorldError, load_tables, load_world, parse_sdf, parse_yaml_world
+from chefbot_common.tables import load_tables
+from chefbot_sim.world import WorldError, load_world, parse_sdf, parse_yaml_world
 
 SDF = """<?xml version="1.0"?>
 <sdf version="1.6">
@@ -209,24 +210,3 @@ def test_aisles_are_wide_enough(pkg: Path):
     for name, p in tables.items():
         assert labels[grid.cell_of(p.x, p.y)] == home, name
     assert np.count_nonzero(labels == home) > 0.3 * labels.size
-
-
-@pytest.mark.parametrize("text, words", [
-    ("poses: {table_1: {x: 1, y: 2}}", ["missing the 'home'"]),
-    ("poses: {home: {x: 1}}", ["poses.home", "missing field 'y'"]),
-    ("poses: {home: {x: a, y: 0}}", ["poses.home.x", "number"]),
-    ("poses: {home: [1, 2]}", ["poses.home", "mapping"]),
-    ("poses: {home: {x: 0, y: 0, z: 1}}", ["unknown key"]),
-    ("frame: odom\nposes: {home: {x: 0, y: 0}}", ["frame must be 'map'"]),
-    ("poses: [", ["invalid YAML"]),
-    ("home: 1", ["poses"]),
-    ("poses: {home: {x: 0, y: 0}}\nextra: 1", ["unknown top-level"]),
-])
-def test_tables_errors(tmp_path: Path, text: str, words: list):
-    p = tmp_path / "t.yaml"
-    p.write_text(text)
-    with pytest.raises(WorldError) as e:
-        load_tables(p)
-    assert str(p) in str(e.value)
-    for w in words:
-        assert w in str(e.value)

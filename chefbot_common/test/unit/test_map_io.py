@@ -1,4 +1,4 @@
-"""map_server YAML + PGM reading and writing (chefbot_navigation.map_io)."""
+"""map_server YAML + PGM reading and writing (chefbot_common.map_io)."""
 from __future__ import annotations
 
 import time
@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from chefbot_navigation.grid import GridInfo, OccupancyMap
-from chefbot_navigation.map_io import MapError, load_map, save_map, write_pgm
+from chefbot_common.grid import GridInfo, OccupancyMap
+from chefbot_common.map_io import MapError, load_map, save_map, write_pgm
 
 HOTEL = Path(__file__).resolve().parents[3] / "chefbot_sim" / "worlds" / "hotel_map.yaml"
 

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import yaml
 
-from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_common.grid import GridInfo, OccupancyMap
 
 MODES = ("trinary", "scale", "raw")
 REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")

@@ -1,12 +1,11 @@
-"""Poses, quaternion policies and the fake-localization correction."""
+"""Poses, angle wrapping and quaternion policies (chefbot_common.geometry)."""
 from __future__ import annotations
 
 import math
 
 import pytest
 
-from chefbot_navigation.fake_localization import map_to_odom
-from chefbot_navigation.geometry import Pose2D, QuaternionError, quaternion_from_yaw, wrap_angle, yaw_from_quaternion
+from chefbot_common.geometry import Pose2D, QuaternionError, quaternion_from_yaw, yaw_from_quaternion
 
 
 def test_compose_inverse_round_trip() -> None:
@@ -14,14 +13,6 @@ def test_compose_inverse_round_trip() -> None:
     c = a.compose(b)
     back = a.inverse().compose(c)
     assert back.x == pytest.approx(b.x) and back.y == pytest.approx(b.y) and back.yaw == pytest.approx(b.yaw)
-
-
-def test_map_to_odom_reproduces_ground_truth() -> None:
-    truth, odom = Pose2D(3.0, 1.0, 0.5), Pose2D(2.8, 1.3, 0.4)   # odometry drifted
-    corr = map_to_odom(truth, odom)
-    est = corr.compose(odom)
-    assert (est.x, est.y) == pytest.approx((truth.x, truth.y))
-    assert wrap_angle(est.yaw - truth.yaw) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_quaternion_normalised_and_zero_policies() -> None:
@@ -33,3 +24,12 @@ def test_quaternion_normalised_and_zero_policies() -> None:
         yaw_from_quaternion(0, 0, 0, 0, "reject")
     with pytest.raises(QuaternionError, match="non-finite"):
         yaw_from_quaternion(0, 0, math.nan, 1, "identity")
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.3, math.pi / 2, -2.5, math.pi, 7.0])
+def test_yaw_quaternion_is_unit_and_round_trips(yaw: float) -> None:
+    q = quaternion_from_yaw(yaw)
+    assert math.isclose(sum(c * c for c in q), 1.0, rel_tol=1e-12)
+    assert q[0] == q[1] == 0.0
+    back = yaw_from_quaternion(*q)
+    assert math.isclose(math.remainder(back - yaw, 2 * math.pi), 0.0, abs_tol=1e-9)

@@ -1,9 +1,39 @@
 """read_config: types, fallbacks, messages that name the parameter."""
+import math
+from dataclasses import dataclass
+
 import pytest
 
-from chefbot_bringup.params import ParamError, read_config
-from chefbot_bringup.twist_to_motors import TwistToMotorsConfig
-from chefbot_bringup.wheel_pid import PidConfig
+from chefbot_common.params import ParamError, read_config
+
+
+@dataclass
+class TwistToMotorsConfig:
+    """A config shaped like a node's: floats, an int, checks in __post_init__."""
+
+    base_width: float = 0.30
+    rate: float = 50.0
+    timeout_ticks: int = 18
+
+    def __post_init__(self) -> None:
+        for name in ("base_width", "rate"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        if self.timeout_ticks < 1:
+            raise ValueError(f"timeout_ticks must be an integer >= 1, got {self.timeout_ticks!r}")
+
+
+@dataclass
+class PidConfig:
+    """Gains and a count, like the wheel PID's."""
+
+    kp: float = 1.0
+    ticks_meter: float = 1000.0
+
+    def __post_init__(self) -> None:
+        if self.kp < 0:
+            raise ValueError(f"kp must be >= 0, got {self.kp!r}")
 
 NAMES = {"base_width": ("~base_width", "base_width"), "rate": "~rate", "timeout_ticks": "~timeout_ticks"}
 

@@ -1,0 +1,71 @@
+"""Named delivery poses of a restaurant (``home``, ``table_1`` ...) read from a tables YAML (pure).
+
+The site's tables file lives beside its map in ``chefbot_navigation/maps/``;
+the GUI, the demo and the scenario tests read it through :func:`load_tables`.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from chefbot_common.geometry import Pose2D
+
+
+class TablesError(ValueError):
+    """A tables file is invalid; the message names the file and the entry."""
+
+
+def _number(v: Any, where: str) -> float:
+    """``v`` as a finite float, or :class:`TablesError` naming ``where``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        raise TablesError(f"{where}: expected a finite number, got {v!r}")
+    return float(v)
+
+
+def load_tables(path: str | Path) -> dict[str, Pose2D]:
+    """Load the named delivery poses (``home``, ``table_1`` ...) of a tables YAML.
+
+    Format::
+
+        frame: map
+        poses:
+          home:    {x: 0.0, y: 0.0, yaw: 0.0}
+          table_1: {x: 2.05, y: -3.0, yaw: 0.0}
+
+    ``yaw`` in rad (default 0).  ``home`` is required; names are unique by YAML
+    construction.  Raises :class:`TablesError` naming the file and the entry.
+    """
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise TablesError(f"{path}: cannot read tables file: {e.strerror}") from e
+    except yaml.YAMLError as e:
+        raise TablesError(f"{path}: invalid YAML: {e}") from e
+    if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):
+        raise TablesError(f"{path}: expected a mapping with a 'poses' mapping")
+    unknown = set(data) - {"frame", "world", "poses"}
+    if unknown:
+        raise TablesError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
+    frame = data.get("frame", "map")
+    if frame != "map":
+        raise TablesError(f"{path}: frame must be 'map', got {frame!r}")
+    out: dict[str, Pose2D] = {}
+    for name, p in data["poses"].items():
+        where = f"{path}: poses.{name}"
+        if not isinstance(p, dict):
+            raise TablesError(f"{where}: expected a mapping {{x, y, yaw}}, got {p!r}")
+        unknown = set(p) - {"x", "y", "yaw"}
+        if unknown:
+            raise TablesError(f"{where}: unknown key(s) {sorted(unknown)}")
+        for key in ("x", "y"):
+            if key not in p:
+                raise TablesError(f"{where}: missing field '{key}'")
+        out[str(name)] = Pose2D(_number(p["x"], f"{where}.x"), _number(p["y"], f"{where}.y"),
+                                _number(p.get("yaw", 0.0), f"{where}.yaw"))
+    if "home" not in out:
+        raise TablesError(f"{path}: missing the 'home' pose")
+    return out

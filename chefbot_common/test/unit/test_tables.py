@@ -1,0 +1,51 @@
+"""load_tables: the delivery poses file, and errors that name the file and the entry."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from chefbot_common.tables import TablesError, load_tables
+
+
+def test_valid_file(tmp_path: Path) -> None:
+    p = tmp_path / "t.yaml"
+    p.write_text("frame: map\nposes:\n  home: {x: 0, y: 0}\n  table_1: {x: 2.5, y: -1, yaw: 1.5}\n")
+    tables = load_tables(p)
+    assert set(tables) == {"home", "table_1"}
+    assert (tables["table_1"].x, tables["table_1"].y, tables["table_1"].yaw) == (2.5, -1.0, 1.5)
+    assert tables["home"].yaw == 0.0
+
+
+def test_non_finite_rejected(tmp_path: Path) -> None:
+    p = tmp_path / "t.yaml"
+    p.write_text("poses: {home: {x: .nan, y: 0}}")
+    with pytest.raises(TablesError, match="poses.home.x"):
+        load_tables(p)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(TablesError, match="cannot read"):
+        load_tables(tmp_path / "absent.yaml")
+
+
+@pytest.mark.parametrize("text, words", [
+    ("poses: {table_1: {x: 1, y: 2}}", ["missing the 'home'"]),
+    ("poses: {home: {x: 1}}", ["poses.home", "missing field 'y'"]),
+    ("poses: {home: {x: a, y: 0}}", ["poses.home.x", "number"]),
+    ("poses: {home: [1, 2]}", ["poses.home", "mapping"]),
+    ("poses: {home: {x: 0, y: 0, z: 1}}", ["unknown key"]),
+    ("frame: odom\nposes: {home: {x: 0, y: 0}}", ["frame must be 'map'"]),
+    ("poses: [", ["invalid YAML"]),
+    ("home: 1", ["poses"]),
+    ("poses: {home: {x: 0, y: 0}}\nextra: 1", ["unknown top-level"]),
+])
+def test_tables_errors(tmp_path: Path, text: str, words: list):
+    p = tmp_path / "t.yaml"
+    p.write_text(text)
+    with pytest.raises(TablesError) as e:
+        load_tables(p)
+    assert str(p) in str(e.value)
+    for w in words:
+        assert w in str(e.value)
+
