@@ -28,7 +28,7 @@ from procs import ProcessGroup, free_port
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
-TABLES_FILE = ROOT / "chefbot_sim" / "worlds" / "hotel_tables.yaml"
+TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
 XY_TOL, YAW_TOL = 0.05, 0.05          # m, rad: the acceptance tolerance against ground truth
 STARTUP_TIMEOUT_S = 180.0             # wall time for the sim + navigation to come up
 LEG_TIMEOUT_S = 240.0                 # wall time per leg before giving up

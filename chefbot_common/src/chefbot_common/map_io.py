@@ -172,6 +172,28 @@ def write_pgm(path: str | os.PathLike, image: np.ndarray, comment: str = "") -> 
         f.write(img.tobytes())
 
 
+def read_pgm(path: str | os.PathLike) -> np.ndarray:
+    """Read an 8-bit grey image (binary PGM or any format OpenCV reads) as uint8 (H, W), top row first."""
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None or img.size == 0:
+        raise MapError(f"{path}: not a readable image (missing, corrupt or unsupported format)")
+    if img.dtype != np.uint8 or img.ndim != 2:
+        raise MapError(f"{path}: expected an 8-bit single-channel image, got {img.dtype} {img.shape}")
+    return img
+
+
+def write_map_yaml(path: str | os.PathLike, image_name: str, resolution: float,
+                   origin: tuple[float, float, float]) -> None:
+    """Write a map_server YAML (trinary thresholds 0.65 / 0.196, negate 0) for ``image_name``."""
+    ox, oy, oyaw = origin
+    Path(path).write_text(f"image: {image_name}\n"
+                          f"resolution: {resolution!r}\n"
+                          f"origin: [{ox!r}, {oy!r}, {oyaw!r}]\n"
+                          "negate: 0\n"
+                          "occupied_thresh: 0.65\n"
+                          "free_thresh: 0.196\n")
+
+
 def save_map(occ: OccupancyMap, base: str | os.PathLike, occupied: int = 65, free: int = 25) -> tuple[Path, Path]:
     """Write ``base.pgm`` and ``base.yaml`` like map_saver; returns both paths.
 
@@ -187,10 +209,5 @@ def save_map(occ: OccupancyMap, base: str | os.PathLike, occupied: int = 65, fre
     info = occ.info
     write_pgm(pgm, occupancy_to_image(occ.data, occupied, free),
               f"CREATOR: chefbot_navigation map_saver {info.resolution:.3f} m/pix")
-    yml.write_text(f"image: {pgm.name}\n"
-                   f"resolution: {info.resolution!r}\n"
-                   f"origin: [{info.origin_x!r}, {info.origin_y!r}, {info.origin_yaw!r}]\n"
-                   "negate: 0\n"
-                   "occupied_thresh: 0.65\n"
-                   "free_thresh: 0.196\n")
+    write_map_yaml(yml, pgm.name, info.resolution, (info.origin_x, info.origin_y, info.origin_yaw))
     return yml, pgm

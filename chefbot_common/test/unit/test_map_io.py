@@ -11,7 +11,7 @@ import pytest
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_common.map_io import MapError, load_map, save_map, write_pgm
 
-HOTEL = Path(__file__).resolve().parents[3] / "chefbot_sim" / "worlds" / "hotel_map.yaml"
+HOTEL = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_map.yaml"
 
 
 def make_map(tmp_path: Path, pixels: np.ndarray, name: str = "m", ext: str = ".pgm", **fields) -> Path:

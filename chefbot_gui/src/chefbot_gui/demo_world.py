@@ -8,8 +8,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
+from chefbot_common import map_io
 from chefbot_gui.geometry import Point, distance
 
 
@@ -24,46 +23,15 @@ class MapFile:
     data: list[int]
 
 
-def _read_pgm(path: Path) -> tuple[int, int, int, bytes]:
-    raw = path.read_bytes()
-    tokens: list[bytes] = []
-    pos = 0
-    while len(tokens) < 4:  # magic, width, height, maxval; '#' comments allowed between
-        while raw[pos:pos + 1].isspace():
-            pos += 1
-        if raw[pos:pos + 1] == b"#":
-            pos = raw.index(b"\n", pos) + 1
-            continue
-        end = pos
-        while not raw[end:end + 1].isspace():
-            end += 1
-        tokens.append(raw[pos:end])
-        pos = end
-    if tokens[0] != b"P5":
-        raise ValueError(f"{path}: only binary PGM (P5) is supported, got {tokens[0]!r}")
-    w, h, maxval = (int(t) for t in tokens[1:])
-    if maxval > 255:
-        raise ValueError(f"{path}: 16-bit PGM not supported")
-    pixels = raw[pos + 1:pos + 1 + w * h]
-    if len(pixels) != w * h:
-        raise ValueError(f"{path}: truncated image")
-    return w, h, maxval, pixels
-
-
 def load_map(yaml_path: str | Path) -> MapFile:
-    """Read a map_server YAML + PGM (trinary mode) into occupancy values."""
-    yaml_path = Path(yaml_path)
-    meta = yaml.safe_load(yaml_path.read_text())
-    w, h, maxval, pixels = _read_pgm(yaml_path.parent / meta["image"])
-    occ_t, free_t = float(meta["occupied_thresh"]), float(meta["free_thresh"])
-    negate = bool(meta.get("negate", 0))
-    data: list[int] = []
-    for row in range(h - 1, -1, -1):  # the image's top row is the grid's last row
-        for p in pixels[row * w:(row + 1) * w]:
-            occ = p / maxval if negate else (maxval - p) / maxval
-            data.append(100 if occ > occ_t else 0 if occ < free_t else -1)
-    ox, oy, oyaw = (list(meta["origin"]) + [0.0, 0.0, 0.0])[:3]
-    return MapFile(float(meta["resolution"]), (float(ox), float(oy), float(oyaw)), w, h, data)
+    """Read a map_server YAML + image (the map server's reader) into occupancy values.
+
+    Raises :class:`chefbot_common.map_io.MapError` (a ValueError) naming the file and field.
+    """
+    occ = map_io.load_map(yaml_path)
+    info = occ.info
+    return MapFile(info.resolution, (info.origin_x, info.origin_y, info.origin_yaw), info.width, info.height,
+                   occ.data.ravel().tolist())
 
 
 def aisle_route(start: Point, goal: Point, aisle_offset: float = 1.5) -> list[Point]:

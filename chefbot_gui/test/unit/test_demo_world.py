@@ -9,7 +9,7 @@ import pytest
 from chefbot_gui.demo_world import aisle_route, load_map, point_along
 from chefbot_gui.geometry import path_length
 
-HOTEL_MAP = Path(__file__).resolve().parents[3] / "chefbot_sim" / "worlds" / "hotel_map.yaml"
+HOTEL_MAP = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_map.yaml"
 
 
 def test_hotel_map_loads_with_walls_and_free_aisles() -> None:
@@ -27,10 +27,10 @@ def test_hotel_map_loads_with_walls_and_free_aisles() -> None:
 
 
 def test_pgm_errors(tmp_path: Path) -> None:
-    (tmp_path / "m.pgm").write_bytes(b"P2\n2 2\n255\n0 0 0 0\n")
+    (tmp_path / "m.pgm").write_bytes(b"not an image at all")
     (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n"
-                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
-    with pytest.raises(ValueError, match="P5"):
+                                     "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    with pytest.raises(ValueError, match="not a readable image"):
         load_map(tmp_path / "m.yaml")
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from chefbot_common.map_io import write_map_yaml, write_pgm
 from chefbot_sim.world import World
 
 FREE = 254
@@ -93,44 +94,13 @@ def rasterise(world: World, resolution: float = 0.05, z_band: tuple[float, float
 def write_map(grid: Grid, yaml_path: str | Path) -> tuple[Path, Path]:
     """Write ``<name>.yaml`` + ``<name>.pgm`` (binary P5) in map_server format.
 
-    Output is byte-for-byte deterministic for the same grid.
+    Output is byte-for-byte deterministic for the same grid (numbers rounded
+    to 6 significant digits so that float noise does not reach the YAML).
     """
     yaml_path = Path(yaml_path)
     pgm_path = yaml_path.with_suffix(".pgm")
-    img = grid.image()
-    h, w = img.shape
-    with open(pgm_path, "wb") as f:
-        f.write(f"P5\n# CREATOR: chefbot_sim world_to_map {grid.resolution:.3f} m/pix\n{w} {h}\n255\n".encode())
-        f.write(img.tobytes())
+    write_pgm(pgm_path, grid.image(), f"CREATOR: chefbot_sim world_to_map {grid.resolution:.3f} m/pix")
     ox, oy = grid.origin
-    yaml_path.write_text(
-        f"image: {pgm_path.name}\n"
-        f"resolution: {grid.resolution:.6g}\n"
-        f"origin: [{ox:.6g}, {oy:.6g}, 0.0]\n"
-        "negate: 0\n"
-        "occupied_thresh: 0.65\n"
-        "free_thresh: 0.196\n")
+    write_map_yaml(yaml_path, pgm_path.name, float(f"{grid.resolution:.6g}"),
+                   (float(f"{ox:.6g}"), float(f"{oy:.6g}"), 0.0))
     return yaml_path, pgm_path
-
-
-def read_pgm(path: str | Path) -> np.ndarray:
-    """Read a binary (P5) PGM, for tests and tools; returns the uint8 image."""
-    data = Path(path).read_bytes()
-    fields: list[bytes] = []
-    pos = 0
-    while len(fields) < 4:
-        while data[pos:pos + 1].isspace():
-            pos += 1
-        if data[pos:pos + 1] == b"#":
-            pos = data.index(b"\n", pos) + 1
-            continue
-        end = pos
-        while not data[end:end + 1].isspace():
-            end += 1
-        fields.append(data[pos:end])
-        pos = end
-    if fields[0] != b"P5":
-        raise ValueError(f"{path}: not a binary PGM (P5)")
-    w, h = int(fields[1]), int(fields[2])
-    pos += 1
-    return np.frombuffer(data[pos:pos + w * h], dtype=np.uint8).reshape(h, w)

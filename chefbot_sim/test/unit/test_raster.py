@@ -5,7 +5,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from chefbot_sim.raster import FREE, OCCUPIED, rasterise, read_pgm, write_map
+from chefbot_common.map_io import read_pgm
+from chefbot_sim.raster import FREE, OCCUPIED, rasterise, write_map
 from chefbot_sim.world import load_world, parse_yaml_world
 
 WORLD = """
@@ -14,6 +15,8 @@ objects:
   - {name: post, shape: cylinder, radius: 0.25, height: 1.0, pose: [3.0, 1.0]}
   - {name: shelf, shape: box, size: [0.5, 0.5, 0.1], pose: [1.0, 3.0, 0.8, 0.0]}
 """
+
+SITE = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps"  # the shipped site map
 
 
 def test_cells_and_band(tmp_path: Path):
@@ -47,8 +50,8 @@ def test_map_server_files(tmp_path: Path):
 def test_shipped_hotel_map_regenerates_identically(pkg: Path, tmp_path: Path):
     g = rasterise(load_world(pkg / "worlds" / "hotel.yaml"), 0.05)
     y, p = write_map(g, tmp_path / "hotel_map.yaml")
-    assert filecmp.cmp(y, pkg / "worlds" / "hotel_map.yaml", shallow=False)
-    assert filecmp.cmp(p, pkg / "worlds" / "hotel_map.pgm", shallow=False)
+    assert filecmp.cmp(y, SITE / "hotel_map.yaml", shallow=False)
+    assert filecmp.cmp(p, SITE / "hotel_map.pgm", shallow=False)
 
 
 def test_cli(pkg: Path, tmp_path: Path):
@@ -58,7 +61,7 @@ def test_cli(pkg: Path, tmp_path: Path):
     res = subprocess.run([sys.executable, str(pkg / "nodes" / "world_to_map"), str(pkg / "worlds" / "hotel.yaml"),
                           str(out)], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
-    assert filecmp.cmp(out.with_suffix(".pgm"), pkg / "worlds" / "hotel_map.pgm", shallow=False)
+    assert filecmp.cmp(out.with_suffix(".pgm"), SITE / "hotel_map.pgm", shallow=False)
     bad = tmp_path / "bad.yaml"
     bad.write_text("objects: [{shape: cone, pose: [0, 0]}]")
     res = subprocess.run([sys.executable, str(pkg / "nodes" / "world_to_map"), str(bad), str(out)],
