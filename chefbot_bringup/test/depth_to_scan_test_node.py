@@ -35,14 +35,6 @@ def scene_m() -> np.ndarray:
     return depth
 
 
-def wait_for(cond, timeout: float, what: str) -> None:
-    deadline = rospy.get_time() + timeout
-    while not cond():
-        if rospy.is_shutdown() or rospy.get_time() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        rospy.sleep(0.02)
-
-
 class TestDepthToScan(unittest.TestCase):
     def run_case(self, ns: str, depth: np.ndarray) -> LaserScan:
         got: list[LaserScan] = []

@@ -21,6 +21,7 @@ from sensor_msgs.msg import Range
 from std_msgs.msg import Float32, Int32
 
 from chefbot_bringup.ros_io import quaternion_to_yaw
+from chefbot_common.rostest_helpers import wait_for
 
 MAX_SPEED = 0.377     # m/s at command 1023
 TAU = 0.1             # s, motor time constant
@@ -103,15 +104,6 @@ class Recorder:
     def last(self):
         with self.lock:
             return self.items[-1][1] if self.items else None
-
-
-def wait_for(cond, timeout: float, what: str) -> None:
-    """Poll cond() until it holds; fail the test after timeout seconds (wall time)."""
-    deadline = rospy.get_time() + timeout
-    while not cond():
-        if rospy.is_shutdown() or rospy.get_time() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        rospy.sleep(0.01)
 
 
 class TestDiffDrive(unittest.TestCase):

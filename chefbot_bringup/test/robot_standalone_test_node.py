@@ -21,19 +21,14 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Int32
 
 from chefbot_bringup.virtual_board import VirtualBoard
+from chefbot_common.geometry import yaw_from_quaternion
+from chefbot_common.rostest_helpers import wait_for
 
 
-def wait_for(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline or rospy.is_shutdown():
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(0.02)
-
-
-def yaw_of(msg: Odometry) -> float:
+def odom_yaw(msg: Odometry) -> float:
+    """Yaw (rad) of an odometry message."""
     q = msg.pose.pose.orientation
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 class BoardThread(threading.Thread):
@@ -133,17 +128,17 @@ class TestRobotStandalone(unittest.TestCase):
         self.assertGreater(right, 0)
         self.assertLess(abs(left - right), 0.1 * max(left, right) + 20, f"unequal commands {left} {right}")
         wait_for(lambda: self.odom.pose.pose.position.x - x0 > 0.2, 10, "odom x to grow by 0.2 m")
-        self.assertLess(abs(yaw_of(self.odom)), 0.1)
+        self.assertLess(abs(odom_yaw(self.odom)), 0.1)
 
     def test_3_turn_left(self) -> None:
         wait_for(lambda: self.board.commands() == (0, 0), 5, "robot stopped before turning")
-        yaw0 = yaw_of(self.odom)
+        yaw0 = odom_yaw(self.odom)
         seen = []
         self.drive(0.0, 1.0, 2.0, check=lambda: seen.append(self.board.commands()))
         left, right = seen[-1]
         self.assertLess(left, 0)
         self.assertGreater(right, 0)
-        wait_for(lambda: math.remainder(yaw_of(self.odom) - yaw0, 2 * math.pi) > 0.5, 10,
+        wait_for(lambda: math.remainder(odom_yaw(self.odom) - yaw0, 2 * math.pi) > 0.5, 10,
                  "odom yaw to grow counter-clockwise by 0.5 rad")
 
     def test_4_stops_within_half_a_second_of_silence(self) -> None:

@@ -10,7 +10,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 import unittest
 
 import actionlib
@@ -28,18 +27,11 @@ from kinematic_robot import KinematicRobot
 
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, wrap_angle
 from chefbot_common.map_io import load_map
+from chefbot_common.rostest_helpers import wait_for
 
 PKG = "chefbot_navigation"
 WALL_TIMEOUT = 240.0    # s, upper bound for one goal on a loaded machine
 START = Pose2D(0.0, 0.0, 0.3)
-
-
-def wait_until(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 def make_goal(x: float, y: float, yaw: float | None = 0.0, frame: str = "map",
@@ -74,7 +66,7 @@ class MoveBaseTest(unittest.TestCase):
         if self.client.gh is not None and self.client.get_state() in (GoalStatus.PENDING, GoalStatus.ACTIVE):
             self.client.cancel_goal()
             self.client.wait_for_result(rospy.Duration(30.0))
-        wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "robot at rest")
+        wait_for(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "robot at rest")
 
     def go(self, goal: MoveBaseGoal) -> int:
         self.client.send_goal(goal)
@@ -105,12 +97,12 @@ class MoveBaseTest(unittest.TestCase):
 
     def test_c_cancel_stops_within_half_a_second(self) -> None:
         self.client.send_goal(make_goal(4.0, 2.0, 0.0))
-        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        wait_for(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
         t_cancel = self.robot.now
         self.client.cancel_goal()
         self.assertTrue(self.client.wait_for_result(rospy.Duration(30.0)))
         self.assertEqual(self.client.get_state(), GoalStatus.PREEMPTED)
-        wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "zero velocity")
+        wait_for(lambda: self.robot.velocity() == (0.0, 0.0), 30.0, "zero velocity")
         zero_at = next(t for t, v, w in reversed(self.robot.cmd_log) if v == 0.0 and w == 0.0)
         self.assertLessEqual(zero_at - t_cancel, 0.5, "zero cmd_vel later than 0.5 s (sim time) after cancel")
         self.assertTrue(all(t <= zero_at for t, _, _ in self.robot.cmd_log), "commands after the zero Twist")
@@ -119,7 +111,7 @@ class MoveBaseTest(unittest.TestCase):
         first = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         self.assertTrue(first.wait_for_server(rospy.Duration(30.0)))
         first.send_goal(make_goal(4.0, 2.0, 0.0))
-        wait_until(lambda: self.robot.velocity()[0] > 0.1, 60.0, "robot moving")
+        wait_for(lambda: self.robot.velocity()[0] > 0.1, 60.0, "robot moving")
         state = self.go(make_goal(0.0, 2.0, math.pi))
         self.assertEqual(first.get_state(), GoalStatus.PREEMPTED)
         self.assertEqual(state, GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
@@ -172,7 +164,7 @@ class MoveBaseTest(unittest.TestCase):
         # go to the far corner, then drop a box on the straight way there
         self.go(make_goal(0.0, 0.0, 0.0))
         self.client.send_goal(make_goal(4.3, 0.0, 0.0))
-        wait_until(lambda: self.robot.pose.x > 0.4, 60.0, "robot under way")
+        wait_for(lambda: self.robot.pose.x > 0.4, 60.0, "robot under way")
         self.robot.add_box(2.9, -0.6, 3.2, 0.15)
         self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
@@ -181,11 +173,11 @@ class MoveBaseTest(unittest.TestCase):
     def test_l_lost_scan_stops_robot_and_resumes(self) -> None:
         self.go(make_goal(0.0, 0.0, 0.0))
         self.client.send_goal(make_goal(4.0, -0.4, 0.0))
-        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        wait_for(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
         self.robot.publish_scan = False
         t_off = self.robot.now
         try:
-            wait_until(lambda: self.robot.velocity() == (0.0, 0.0), 60.0, "stop without scan")
+            wait_for(lambda: self.robot.velocity() == (0.0, 0.0), 60.0, "stop without scan")
             zero_at = next(t for t, v, w in reversed(self.robot.cmd_log) if v == 0.0 and w == 0.0)
             # sensor_timeout 1 s + one control period + the last scan's age (10 Hz)
             self.assertLess(zero_at - t_off, 1.5)
@@ -199,7 +191,7 @@ class MoveBaseTest(unittest.TestCase):
         pub = rospy.Publisher("move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
         ps = make_goal(1.0, -0.3, -math.pi / 2).target_pose
         pub.publish(ps)
-        wait_until(lambda: math.hypot(self.robot.pose.x - 1.0, self.robot.pose.y + 0.3) < 0.05
+        wait_for(lambda: math.hypot(self.robot.pose.x - 1.0, self.robot.pose.y + 0.3) < 0.05
                    and abs(wrap_angle(self.robot.pose.yaw + math.pi / 2)) < 0.05
                    and self.robot.velocity() == (0.0, 0.0), WALL_TIMEOUT, "robot at the RViz goal")
         pub.unregister()
@@ -216,7 +208,7 @@ class MoveBaseTest(unittest.TestCase):
     def test_p_time_jumping_back_mid_goal_recovers(self) -> None:
         self.go(make_goal(0.0, 0.0, 0.0))
         self.client.send_goal(make_goal(0.0, 2.0, 0.0))
-        wait_until(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
+        wait_for(lambda: self.robot.velocity()[0] > 0.15, 60.0, "robot moving")
         self.robot.jump_back(3.0)
         self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)))
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
@@ -226,7 +218,7 @@ class MoveBaseTest(unittest.TestCase):
         self.assertGreater(grid.header.stamp.to_sec(), self.robot.now - 5.0)
         # ... and so did actionlib's periodic status (restarted by move_base)
         t_after = self.robot.now
-        wait_until(lambda: rospy.wait_for_message("move_base/status", GoalStatusArray, 30.0).header.stamp.to_sec()
+        wait_for(lambda: rospy.wait_for_message("move_base/status", GoalStatusArray, 30.0).header.stamp.to_sec()
                    > t_after, 60.0, "fresh move_base/status")
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:

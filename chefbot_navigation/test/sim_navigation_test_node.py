@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 import unittest
 
 import actionlib
@@ -22,18 +21,11 @@ from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Bool, String
 
 from chefbot_common.geometry import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
+from chefbot_common.rostest_helpers import wait_for
 from chefbot_common.tables import load_tables
 
 PKG = "chefbot_navigation"
 WALL_TIMEOUT = 600.0
-
-
-def wait_until(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline or rospy.is_shutdown():
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 class Truth:
@@ -105,7 +97,7 @@ class SimNavigationTest(unittest.TestCase):
         cls.truth = Truth()
         cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
-        wait_until(lambda: bool(cls.truth.hist), 120.0, "ground truth")
+        wait_for(lambda: bool(cls.truth.hist), 120.0, "ground truth")
         cls.spawn = rospy.Publisher("chefbot_sim/spawn", String, queue_size=1, latch=True)
 
     def deliver(self, name: str, sent_at: float | None = None) -> float:
@@ -119,7 +111,7 @@ class SimNavigationTest(unittest.TestCase):
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED,
                          f"{name}: {self.client.get_goal_status_text()}")
         # judge after the robot has settled (the sim's wheels coast a little after the zero command)
-        wait_until(lambda: self.truth.speed() < 0.005, 60.0, "robot at rest")
+        wait_for(lambda: self.truth.speed() < 0.005, 60.0, "robot at rest")
         _, x, y, yaw = self.truth.latest()
         err_xy, err_yaw = math.hypot(x - target.x, y - target.y), abs(wrap_angle(yaw - target.yaw))
         rospy.loginfo("sim_navigation: %s reached in %.1f s sim time, error %.3f m %.3f rad", name, took,
@@ -136,10 +128,10 @@ class SimNavigationTest(unittest.TestCase):
 
     def test_b_cancel_mid_route_stops_within_half_a_second(self) -> None:
         self.client.send_goal(goal_for(self.tables["table_9"]))
-        wait_until(lambda: self.truth.speed() > 0.2, 120.0, "robot at cruising speed")
+        wait_for(lambda: self.truth.speed() > 0.2, 120.0, "robot at cruising speed")
         t_cancel = rospy.get_time()
         self.client.cancel_goal()
-        wait_until(lambda: self.truth.speed(0.1) < 0.01, 60.0, "robot stopped")
+        wait_for(lambda: self.truth.speed(0.1) < 0.01, 60.0, "robot stopped")
         stopped = self.truth.latest()[0]
         print(f"[figure] cancel: stopped {stopped - t_cancel:.2f} s sim after cancel", flush=True)
         # speed() looks 0.1 s back, so the robot stood still since at least 0.1 s before 'stopped'
@@ -151,7 +143,7 @@ class SimNavigationTest(unittest.TestCase):
         self.truth.plan = None
         sent = rospy.get_time()
         self.client.send_goal(goal_for(self.tables["table_7"]))
-        wait_until(lambda: self.truth.plan is not None and self.truth.speed() > 0.2, 120.0, "robot under way")
+        wait_for(lambda: self.truth.plan is not None and self.truth.speed() > 0.2, 120.0, "robot under way")
         _, x, y, _ = self.truth.latest()
         pts = np.array([(p.pose.position.x, p.pose.position.y) for p in self.truth.plan.poses])
         d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)

@@ -13,7 +13,6 @@ import math
 import os
 import signal
 import threading
-import time
 import unittest
 import xmlrpc.client
 
@@ -26,14 +25,18 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
+from chefbot_common.geometry import yaw_from_quaternion
+from chefbot_common.rostest_helpers import SimClockWaits
+
 WALL_TIMEOUT = 120.0  # s of wall time for any single condition
 WATCHDOG = 0.5        # s, the firmware's watchdog_ms (PROTOCOL.md)
 STOP_MARGIN = 0.35    # s of sim time allowed for pid/twist_to_motors ramps + braking to a stop
 
 
 def yaw_of(m: Odometry) -> float:
+    """Yaw (rad) of an odometry message."""
     q = m.pose.pose.orientation
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 def xy(m: Odometry) -> np.ndarray:
@@ -41,7 +44,10 @@ def xy(m: Odometry) -> np.ndarray:
     return np.array([p.x, p.y])
 
 
-class Recorder:
+class Recorder(SimClockWaits):
+    wall_timeout = WALL_TIMEOUT
+    stopped = staticmethod(rospy.is_shutdown)
+
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.clock = -1.0
@@ -74,20 +80,6 @@ class Recorder:
     def set_cmd(self, cmd: tuple[float, float] | None) -> None:
         with self.lock:
             self.cmd = cmd
-
-    def now(self) -> float:
-        with self.lock:
-            return self.clock
-
-    def wait_for(self, cond, what: str) -> None:
-        deadline = time.monotonic() + WALL_TIMEOUT
-        while not cond():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                raise AssertionError(f"timed out waiting for {what}")
-            time.sleep(0.01)
-
-    def wait_until(self, t: float) -> None:
-        self.wait_for(lambda: self.now() >= t, f"sim time {t:.2f}")
 
     def between(self, key: str, t0: float, t1: float = math.inf) -> list:
         with self.lock:

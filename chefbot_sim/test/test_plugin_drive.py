@@ -7,7 +7,6 @@ the real-time factor.
 """
 import math
 import threading
-import time
 import unittest
 
 import numpy as np
@@ -18,12 +17,17 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, LaserScan, Range
 
+from chefbot_common.rostest_helpers import SimClockWaits
+
 WALL_TIMEOUT = 90.0  # s of wall time for any single condition
 SONAR_X = 0.1425     # m, ultrasonic_link ahead of base_footprint (chefbot.xacro)
 DEPTH_X = 0.1615     # m, camera_depth_frame ahead of base_footprint
 
 
-class Recorder:
+class Recorder(SimClockWaits):
+    wall_timeout = WALL_TIMEOUT
+    stopped = staticmethod(rospy.is_shutdown)
+
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.clock = -1.0
@@ -51,20 +55,6 @@ class Recorder:
             t = Twist()
             t.linear.x, t.angular.z = cmd
             self.pub.publish(t)
-
-    def now(self) -> float:
-        with self.lock:
-            return self.clock
-
-    def wait_for(self, cond, what: str) -> None:
-        deadline = time.monotonic() + WALL_TIMEOUT
-        while not cond():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                raise AssertionError(f"timed out waiting for {what}")
-            time.sleep(0.01)
-
-    def wait_until(self, t: float) -> None:
-        self.wait_for(lambda: self.now() >= t, f"sim time {t:.2f}")
 
     def between(self, key: str, t0: float, t1: float) -> list:
         with self.lock:
