@@ -8,6 +8,7 @@ are used for planning (as in ROS's costmap_2d, which ignores the yaw).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,29 @@ class GridInfo:
     def inside(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
         """Boolean mask: which cells lie inside the grid."""
         return (row >= 0) & (row < self.height) & (col >= 0) & (col < self.width)
+
+    # Continuous coordinates honouring ``origin_yaw`` (for display: the GUI draws rotated maps).
+    def world_to_grid(self, x: float, y: float) -> tuple[float, float]:
+        """Continuous grid coordinates (column, row from the grid's bottom) of a map point."""
+        dx, dy = x - self.origin_x, y - self.origin_y
+        c, s = math.cos(self.origin_yaw), math.sin(self.origin_yaw)
+        return (c * dx + s * dy) / self.resolution, (-s * dx + c * dy) / self.resolution
+
+    def grid_to_world(self, col: float, row: float) -> tuple[float, float]:
+        """Map point (m) of continuous grid coordinates (inverse of :meth:`world_to_grid`)."""
+        lx, ly = col * self.resolution, row * self.resolution
+        c, s = math.cos(self.origin_yaw), math.sin(self.origin_yaw)
+        return self.origin_x + c * lx - s * ly, self.origin_y + s * lx + c * ly
+
+    def world_to_image(self, x: float, y: float) -> tuple[float, float]:
+        """Image pixel (u right, v down) of a map point in an image of the grid whose
+        first row is the grid's *top* row (images grow downwards, grids upwards)."""
+        col, row = self.world_to_grid(x, y)
+        return col, self.height - row
+
+    def image_to_world(self, u: float, v: float) -> tuple[float, float]:
+        """Map point of an image pixel (inverse of :meth:`world_to_image`)."""
+        return self.grid_to_world(u, self.height - v)
 
 
 @dataclass

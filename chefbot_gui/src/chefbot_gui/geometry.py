@@ -1,4 +1,6 @@
-"""Planar geometry for the delivery GUI: route progress, map pixels (quaternions: chefbot_common.geometry).
+"""Planar geometry for the delivery GUI: route progress, map pixels.
+
+Quaternions: :mod:`chefbot_common.geometry`; grid placement: :class:`chefbot_common.grid.GridInfo`.
 
 Pure Python (no ROS, no Qt) so it is unit-tested without a master or a display.
 Units: metres, radians, seconds.  All poses are in the ``map`` frame.
@@ -7,7 +9,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 Point = tuple[float, float]
 
@@ -67,42 +68,6 @@ def nearest_index(origin: Point, candidates: Sequence[Point]) -> int:
         if d < best_d:
             best, best_d = i, d
     return best
-
-
-@dataclass(frozen=True)
-class GridInfo:
-    """Placement of an occupancy grid: ``resolution`` m/cell, cell (0, 0) corner at
-    ``origin_x, origin_y`` (m) rotated by ``origin_yaw`` (rad), ``width`` × ``height`` cells.
-    """
-
-    resolution: float
-    width: int
-    height: int
-    origin_x: float = 0.0
-    origin_y: float = 0.0
-    origin_yaw: float = 0.0
-
-    def world_to_cell(self, x: float, y: float) -> tuple[float, float]:
-        """Continuous cell coordinates (column, row from the grid's bottom) of a map point."""
-        dx, dy = x - self.origin_x, y - self.origin_y
-        c, s = math.cos(self.origin_yaw), math.sin(self.origin_yaw)
-        return (c * dx + s * dy) / self.resolution, (-s * dx + c * dy) / self.resolution
-
-    def cell_to_world(self, col: float, row: float) -> tuple[float, float]:
-        """Map point (m) of continuous cell coordinates (inverse of :meth:`world_to_cell`)."""
-        lx, ly = col * self.resolution, row * self.resolution
-        c, s = math.cos(self.origin_yaw), math.sin(self.origin_yaw)
-        return self.origin_x + c * lx - s * ly, self.origin_y + s * lx + c * ly
-
-    def world_to_image(self, x: float, y: float) -> tuple[float, float]:
-        """Image pixel (u right, v down) of a map point in an image of the grid whose
-        first row is the grid's *top* row (images grow downwards, grids upwards)."""
-        col, row = self.world_to_cell(x, y)
-        return col, self.height - row
-
-    def image_to_world(self, u: float, v: float) -> tuple[float, float]:
-        """Map point of an image pixel (inverse of :meth:`world_to_image`)."""
-        return self.cell_to_world(u, self.height - v)
 
 
 def grid_to_grey(data: Sequence[int], width: int, height: int) -> bytes:

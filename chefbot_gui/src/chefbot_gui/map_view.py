@@ -2,7 +2,7 @@
 
 Qt only (no ROS): it is given plain data by the window and emits
 ``tableClicked(key)`` when staff click near a table marker.  Coordinates go
-map frame (m) → grid image pixels (:class:`chefbot_gui.geometry.GridInfo`) →
+map frame (m) → grid image pixels (:class:`chefbot_common.grid.GridInfo`) →
 widget pixels (uniform scale + offset that fit the image in the widget).
 """
 from __future__ import annotations
@@ -15,7 +15,8 @@ from PyQt5.QtCore import QPointF, QRectF, Qt, pyqtSignal
 from PyQt5.QtGui import QBrush, QColor, QFont, QImage, QMouseEvent, QPainter, QPaintEvent, QPen, QPolygonF
 from PyQt5.QtWidgets import QWidget
 
-from chefbot_gui.geometry import GridInfo, Point
+from chefbot_common.grid import GridInfo
+from chefbot_gui.geometry import Point
 
 ROBOT_RADIUS_M = 0.178  # the book's base collision cylinder
 CLICK_RADIUS_PX = 28.0

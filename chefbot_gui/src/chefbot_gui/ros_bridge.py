@@ -28,6 +28,7 @@ from PyQt5.QtCore import QObject, pyqtSignal
 from sensor_msgs.msg import BatteryState
 
 from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+from chefbot_common.grid import GridInfo
 from chefbot_gui import geometry
 from chefbot_gui.presenter import Destination, Outcome
 
@@ -75,13 +76,13 @@ def goal_message(dest: Destination, frame: str, stamp: rospy.Time) -> MoveBaseGo
     return goal
 
 
-def grid_from_message(msg: OccupancyGrid) -> tuple[bytes, geometry.GridInfo]:
+def grid_from_message(msg: OccupancyGrid) -> tuple[bytes, GridInfo]:
     """Grey image bytes and placement of an ``OccupancyGrid`` (done off the GUI thread)."""
     info = msg.info
     o = info.origin
     q = o.orientation
     yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w, zero_policy="identity")
-    grid = geometry.GridInfo(info.resolution, info.width, info.height, o.position.x, o.position.y, yaw)
+    grid = GridInfo(info.resolution, info.width, info.height, o.position.x, o.position.y, yaw)
     return geometry.grid_to_grey(msg.data, info.width, info.height), grid
 
 

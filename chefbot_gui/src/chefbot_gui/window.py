@@ -14,7 +14,7 @@ from PyQt5 import uic
 from PyQt5.QtCore import Qt, QTimer, pyqtSlot
 from PyQt5.QtWidgets import QListView, QListWidgetItem, QWidget
 
-from chefbot_gui.geometry import GridInfo
+from chefbot_common.grid import GridInfo
 from chefbot_gui.map_view import Marker
 from chefbot_gui.presenter import DeliveryPresenter, OrderMode, Outcome, Phase, Pose, ViewState
 

@@ -5,6 +5,7 @@ import math
 
 import pytest
 
+from chefbot_common.grid import GridInfo
 from chefbot_gui import geometry as g
 
 
@@ -37,16 +38,16 @@ def test_nearest_index() -> None:
 
 
 def test_grid_world_image_round_trip() -> None:
-    info = g.GridInfo(resolution=0.05, width=328, height=268, origin_x=-3.7, origin_y=-6.7)
-    col, row = info.world_to_cell(-3.7, -6.7)
+    info = GridInfo(resolution=0.05, width=328, height=268, origin_x=-3.7, origin_y=-6.7)
+    col, row = info.world_to_grid(-3.7, -6.7)
     assert (col, row) == pytest.approx((0.0, 0.0))
     u, v = info.world_to_image(0.0, 0.0)
     assert u == pytest.approx(74.0)
     assert v == pytest.approx(268 - 134.0)
     assert info.image_to_world(u, v) == pytest.approx((0.0, 0.0))
-    rotated = g.GridInfo(0.1, 10, 10, 1.0, 2.0, math.pi / 2)
-    assert rotated.cell_to_world(*rotated.world_to_cell(1.3, 2.7)) == pytest.approx((1.3, 2.7))
-    assert rotated.world_to_cell(1.0, 3.0) == pytest.approx((10.0, 0.0))
+    rotated = GridInfo(0.1, 10, 10, 1.0, 2.0, math.pi / 2)
+    assert rotated.grid_to_world(*rotated.world_to_grid(1.3, 2.7)) == pytest.approx((1.3, 2.7))
+    assert rotated.world_to_grid(1.0, 3.0) == pytest.approx((10.0, 0.0))
 
 
 def test_grid_to_grey_colours_and_flips() -> None:
