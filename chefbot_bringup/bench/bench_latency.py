@@ -34,7 +34,7 @@ def measure(trials: int) -> dict:
     from geometry_msgs.msg import Twist
     from procs import ProcessGroup, free_port
 
-    from chefbot_bringup.virtual_board import VirtualBoard
+    from chefbot_firmware.virtual_board import VirtualBoard
 
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}")

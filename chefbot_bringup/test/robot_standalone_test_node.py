@@ -20,9 +20,9 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Int32
 
-from chefbot_bringup.virtual_board import VirtualBoard
 from chefbot_common.geometry import yaw_from_quaternion
 from chefbot_common.rostest_helpers import wait_for
+from chefbot_firmware.virtual_board import VirtualBoard
 
 
 def odom_yaw(msg: Odometry) -> float:

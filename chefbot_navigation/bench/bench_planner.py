@@ -5,7 +5,7 @@ Cases: the hotel costmap (chefbot_navigation/maps/hotel_map.yaml, home -> every
 table) and a generated 1200 x 1200 office map (1.44 M cells, random
 start/goal pairs in free space).  The reference is an exact Dijkstra on the
 same 8-connected graph with the same edge costs
-(scipy.sparse.csgraph.dijkstra, chefbot_navigation.reference); NavFn's
+(scipy.sparse.csgraph.dijkstra, chefbot_navigation/test/planner_reference.py); NavFn's
 9-15 ms on a map of that size gives the speed goal (<= 10x, i.e. 150 ms).
 
     python chefbot_navigation/bench/bench_planner.py [--quick]
@@ -22,12 +22,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
+sys.path.insert(0, str(ROOT / "chefbot_navigation" / "test"))  # maps_gen, planner_reference
+
+from maps_gen import office_map  # noqa: E402  (test-only helper)
+from planner_reference import exact_cost, grid_graph  # noqa: E402  (test-only helper)
 
 from chefbot_common.map_io import load_map  # noqa: E402
 from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap  # noqa: E402
-from chefbot_navigation.maps_gen import office_map  # noqa: E402
 from chefbot_navigation.planners import PlannerParams, cell_costs, make_planner  # noqa: E402
-from chefbot_navigation.reference import exact_cost, grid_graph  # noqa: E402
 
 HOTEL = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
 TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"

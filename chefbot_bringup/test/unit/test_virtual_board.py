@@ -8,7 +8,7 @@ import serial
 
 from chefbot_bringup import launchpad_protocol as proto
 from chefbot_bringup.launchpad import LaunchpadCore
-from chefbot_bringup.virtual_board import EDGES_PER_REV, FREE_SPEED_RAD_S, MotorModel, PtyPort, VirtualBoard
+from chefbot_firmware.virtual_board import EDGES_PER_REV, FREE_SPEED_RAD_S, MotorModel, PtyPort, VirtualBoard
 
 
 def run(board: VirtualBoard, ser: serial.Serial, core: LaunchpadCore, seconds: float, cmd: bytes | None,

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from maps_gen import office_map
+from planner_reference import exact_cost
 
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap, CostmapParams, LayeredCostmap
-from chefbot_navigation.maps_gen import office_map
 from chefbot_navigation.planners import PlannerParams, PlanningError, cell_costs, make_planner, path_cost
-from chefbot_navigation.reference import exact_cost
 
 
 def random_costmap(seed: int, n: int = 60) -> Costmap:

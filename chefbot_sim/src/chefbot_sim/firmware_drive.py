@@ -1,6 +1,6 @@
 """Firmware-in-the-loop drive: the LaunchPad emulated by our firmware core, on sim time.
 
-The simulator owns a :class:`chefbot_bringup.virtual_board.VirtualBoard`
+The simulator owns a :class:`chefbot_firmware.virtual_board.VirtualBoard`
 (``model_wheels=False``): a pseudo-terminal (plus a symlink such as
 ``/tmp/chefbot_launchpad``) whose bytes go through the firmware's own parser,
 watchdog, encoder decoder, scheduler and line formatter
@@ -134,9 +134,9 @@ class FirmwareDrive:
     def __init__(self, link: str, motor: DcMotor, wheel_angles: Sequence[float],
                  battery_volts: float = DEFAULT_BATTERY_VOLTS) -> None:
         try:
-            from chefbot_bringup.virtual_board import VirtualBoard
+            from chefbot_firmware.virtual_board import VirtualBoard
         except ImportError as e:  # pragma: no cover - chefbot_bringup is a dependency
-            raise FirmwareDriveError(f"chefbot_bringup.virtual_board is not importable: {e}") from e
+            raise FirmwareDriveError(f"chefbot_firmware.virtual_board is not importable: {e}") from e
         if not (math.isfinite(battery_volts) and battery_volts >= 0):
             raise FirmwareDriveError(f"battery_volts must be a finite number >= 0, got {battery_volts!r}")
         if link:

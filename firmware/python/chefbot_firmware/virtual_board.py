@@ -6,7 +6,8 @@ parser, watchdog, encoder decoder, scheduler and line formatter.  The wheels are
 a first-order DC-motor model (80 RPM free speed at full duty), or are driven by
 the caller (the simulator feeds its physics' wheel angles instead).
 
-Used by the bringup rostests, by ``rosrun chefbot_bringup virtual_launchpad``
+The firmware package's emulated board.  Used by the bringup rostests, by
+``rosrun chefbot_bringup virtual_launchpad``
 (try ``robot_standalone.launch`` without hardware) and by the simulator's
 firmware-in-the-loop mode.  No rospy here.
 """

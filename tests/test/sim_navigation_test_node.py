@@ -24,7 +24,7 @@ from chefbot_common.geometry import quaternion_from_yaw, wrap_angle, yaw_from_qu
 from chefbot_common.rostest_helpers import wait_for
 from chefbot_common.tables import load_tables
 
-PKG = "chefbot_navigation"
+PKG = "chefbot_tests"
 WALL_TIMEOUT = 600.0
 
 
