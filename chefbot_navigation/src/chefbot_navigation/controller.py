@@ -93,6 +93,19 @@ class LocalController(Protocol):
         ...
 
 
+def arc_points(pose: Pose2D, v: float, w: float, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses (x m, y m, yaw rad arrays) reached after times ``ts`` (s) driving (v m/s, w rad/s) from ``pose``."""
+    ts = np.asarray(ts, dtype=float)
+    if abs(w) < 1e-6:
+        xs = pose.x + v * ts * math.cos(pose.yaw)
+        ys = pose.y + v * ts * math.sin(pose.yaw)
+    else:
+        th = pose.yaw + w * ts
+        xs = pose.x + v / w * (np.sin(th) - math.sin(pose.yaw))
+        ys = pose.y - v / w * (np.cos(th) - math.cos(pose.yaw))
+    return xs, ys, pose.yaw + w * ts
+
+
 def _limit(value: float, prev: float, rate: float, dt: float) -> float:
     return min(max(value, prev - rate * dt), prev + rate * dt)
 
@@ -147,14 +160,7 @@ class RegulatedPurePursuit:
             return False   # rotating in place sweeps nothing new for a round footprint
         horizon = self.p.collision_horizon + abs(v) / self.p.decel_lim_x
         n = max(int(math.ceil(abs(v) * horizon / (0.5 * costmap.info.resolution))), 2)
-        ts = np.linspace(0.0, horizon, n + 1)[1:]
-        if abs(w) < 1e-6:
-            xs = pose.x + v * ts * math.cos(pose.yaw)
-            ys = pose.y + v * ts * math.sin(pose.yaw)
-        else:
-            th = pose.yaw + w * ts
-            xs = pose.x + v / w * (np.sin(th) - math.sin(pose.yaw))
-            ys = pose.y - v / w * (np.cos(th) - math.cos(pose.yaw))
+        xs, ys, _ = arc_points(pose, v, w, np.linspace(0.0, horizon, n + 1)[1:])
         cost = costmap.cost_at(xs, ys)
         here = int(costmap.cost_at(pose.x, pose.y))
         if here >= INSCRIBED:

@@ -18,18 +18,28 @@ move_base's state machine:
 * RECOVERING: the behaviours run in order -- clear the scan obstacles,
   rotate in place once around, back off -- each followed by a fresh plan;
   when the last one has run and the robot is still stuck the goal aborts.
+* No usable pose (stale tf, no recent scan: the node passes ``pose=None``
+  and why): stop; the goal aborts after ``controller_patience`` without one.
+
+Also here, pure: the node's own parameters (:class:`NodeParams`, read with
+:func:`read_move_base_params`), goal checking (:func:`parse_goal`) and the
+scan-age check (:func:`scan_fault`).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from chefbot_common.geometry import Pose2D, wrap_angle
-from chefbot_navigation.controller import ControllerParams, LocalController
-from chefbot_navigation.costmap import INSCRIBED, LayeredCostmap
-from chefbot_navigation.planners import GlobalPlanner, Plan, PlanningError
+from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
+from chefbot_common.params import read_config
+from chefbot_navigation.controller import CONTROLLERS, ControllerParams, LocalController, make_controller
+from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap
+from chefbot_navigation.planners import PLANNERS, GlobalPlanner, Plan, PlannerParams, PlanningError, make_planner
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
 RECOVERIES = ("clear_costmaps", "rotate", "back_off")
@@ -60,6 +70,108 @@ class NavigatorParams:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.oscillation_timeout < 0.0:
             raise ValueError(f"oscillation_timeout must be >= 0 s, got {self.oscillation_timeout}")
+
+
+@dataclass(frozen=True)
+class NodeParams:
+    """move_base node-level params (s, Hz, frame names)."""
+
+    controller_frequency: float = 10.0      # Hz
+    global_frame: str = "map"
+    robot_base_frame: str = "base_footprint"
+    transform_tolerance: float = 0.5        # s, older robot pose = stale -> stop
+    sensor_timeout: float = 1.0             # s without scan -> stop (0 disables the check)
+    base_global_planner: str = "hierarchical"
+    base_local_planner: str = "regulated_pure_pursuit"
+    zero_quaternion_policy: str = "identity"   # identity | ignore_yaw | reject
+    global_publish_frequency: float = 1.0   # Hz, global costmap topic
+    local_publish_frequency: float = 2.0    # Hz, local costmap topic
+
+    def __post_init__(self) -> None:
+        if not self.controller_frequency >= 1.0:
+            raise ValueError(f"controller_frequency must be >= 1 Hz, got {self.controller_frequency}")
+        if not self.transform_tolerance > 0.0:
+            raise ValueError(f"transform_tolerance must be > 0 s, got {self.transform_tolerance}")
+        if self.sensor_timeout < 0.0:
+            raise ValueError(f"sensor_timeout must be >= 0 s, got {self.sensor_timeout}")
+        if self.base_global_planner not in PLANNERS:
+            raise ValueError(f"base_global_planner must be one of {sorted(PLANNERS)}, got "
+                             f"{self.base_global_planner!r}")
+        if self.base_local_planner not in CONTROLLERS:
+            raise ValueError(f"base_local_planner must be one of {sorted(CONTROLLERS)}, got "
+                             f"{self.base_local_planner!r}")
+        if self.zero_quaternion_policy not in ("identity", "ignore_yaw", "reject"):
+            raise ValueError(f"zero_quaternion_policy must be identity, ignore_yaw or reject, got "
+                             f"{self.zero_quaternion_policy!r}")
+        if not (self.global_frame and self.robot_base_frame):
+            raise ValueError("global_frame and robot_base_frame must be non-empty")
+        if self.global_publish_frequency < 0.0 or self.local_publish_frequency < 0.0:
+            raise ValueError("global_publish_frequency and local_publish_frequency must be >= 0 Hz")
+
+
+def _names(cls: type, prefix: str) -> dict[str, str]:
+    """Private parameter name ``~<prefix><field>`` of every field of ``cls``."""
+    return {f.name: f"~{prefix}{f.name}" for f in dataclasses.fields(cls)}
+
+
+def read_move_base_params(get: Callable[[str, Any], Any]) -> tuple[NodeParams, NavigatorParams, ControllerParams,
+                                                                    CostmapParams, PlannerParams]:
+    """All move_base params (layout of param/move_base.yaml); ParamError names a bad one."""
+    ctrl_names = _names(ControllerParams, "controller/")
+    ctrl_names.update(xy_goal_tolerance="~xy_goal_tolerance", yaw_goal_tolerance="~yaw_goal_tolerance",
+                      controller_frequency="~controller_frequency")
+    return (read_config(NodeParams, get, _names(NodeParams, "")),
+            read_config(NavigatorParams, get, _names(NavigatorParams, "")),
+            read_config(ControllerParams, get, ctrl_names),
+            read_config(CostmapParams, get, _names(CostmapParams, "costmap/")),
+            read_config(PlannerParams, get, _names(PlannerParams, "planner/")))
+
+
+class GoalError(ValueError):
+    """A goal that cannot be used; the message is the abort text."""
+
+
+def parse_goal(position: tuple[float, float, float], orientation: tuple[float, float, float, float],
+               zero_policy: str) -> tuple[Pose2D, bool]:
+    """Planar goal (m, m, rad) in its own frame from a pose, and whether it asks for a final yaw.
+
+    Raises :class:`GoalError` for a non-finite position or an unusable quaternion
+    (``zero_policy`` as :func:`chefbot_common.geometry.yaw_from_quaternion`).
+    """
+    x, y, z = position
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        raise GoalError(f"goal position ({x}, {y}) is not finite")
+    try:
+        yaw = yaw_from_quaternion(*orientation, zero_policy)
+    except QuaternionError as exc:
+        raise GoalError(f"invalid goal orientation: {exc}") from None
+    return Pose2D(x, y, yaw or 0.0), yaw is not None
+
+
+def build_navigator(occ, node: NodeParams, nav: NavigatorParams, ctrl: ControllerParams, cost: CostmapParams,
+                    plan: PlannerParams, old: Navigator | None, t: float) -> tuple[LayeredCostmap, Navigator]:
+    """Costmap and navigator for a (new) map; the goal of ``old`` carries over, restarted at ``t`` (s)."""
+    layers = LayeredCostmap(occ, cost)
+    navigator = Navigator(nav, ctrl, make_planner(node.base_global_planner, plan, cost.robot_radius),
+                          make_controller(node.base_local_planner, ctrl), layers)
+    if old is not None and old.goal is not None:
+        navigator.set_goal(old.goal, t)
+    return layers, navigator
+
+
+def pose_age_fault(age: float, tolerance: float, parent: str, child: str) -> str:
+    """Why a robot pose ``age`` s old is too stale to drive on ('' when within ``tolerance`` s)."""
+    if age <= tolerance:
+        return ""
+    return f"transform {parent} -> {child} is {age:.2f} s old (transform_tolerance {tolerance} s)"
+
+
+def scan_fault(now: float, last_scan_time: float | None, timeout: float) -> str:
+    """Why the scan is too old to drive on (s); '' when fresh or the check is disabled (timeout 0)."""
+    if timeout <= 0.0 or (last_scan_time is not None and now - last_scan_time <= timeout):
+        return ""
+    age = "never" if last_scan_time is None else f"{now - last_scan_time:.1f} s ago"
+    return f"no scan within sensor_timeout {timeout} s (last {age})"
 
 
 @dataclass
@@ -111,6 +223,7 @@ class Navigator:
         self.osc_pose: Pose2D | None = None
         self.osc_time = t
         self.cleared_for_goal = False
+        self.stale_since: float | None = None
 
     # --- goal management -------------------------------------------------------------------------
     def set_goal(self, goal: Goal, t: float) -> None:
@@ -119,6 +232,15 @@ class Navigator:
         self.plan = None
         self.state = "planning"
         self._reset_timers(t)
+
+    def restart(self, t: float) -> None:
+        """Time jumped back: restart the current goal's timers at ``t`` (s)."""
+        if self.goal is not None:
+            self.set_goal(self.goal, t)
+
+    def plan_between(self, start: tuple[float, float], goal: Goal) -> Plan:
+        """A global plan from ``start`` (x, y m) to the goal on the current costmap (PlanningError if none)."""
+        return self.planner.plan(self.costmap.master(), start, (goal.x, goal.y))
 
     def cancel(self) -> None:
         """Drop the goal; the caller sends the zero command."""
@@ -204,10 +326,20 @@ class Navigator:
         return StepResult(v, w, "recovering")
 
     # --- main step ---------------------------------------------------------------------------------
-    def step(self, t: float, pose: Pose2D) -> StepResult:
-        """Advance the state machine at time ``t`` (s) with the robot at ``pose`` (map frame)."""
+    def step(self, t: float, pose: Pose2D | None, why: str = "") -> StepResult:
+        """Advance the state machine at time ``t`` (s) with the robot at ``pose`` (map frame).
+
+        ``pose`` None means there is no usable pose now (``why``: stale tf, no recent scan):
+        the command is zero, and the goal aborts once that has lasted ``controller_patience``.
+        """
         if self.goal is None:
             return StepResult(0.0, 0.0, "idle")
+        if pose is None:
+            self.stale_since = t if self.stale_since is None else self.stale_since
+            if t - self.stale_since > self.p.controller_patience:
+                return self._finish("aborted", f"Stopped for {self.p.controller_patience:g} s: {why}")
+            return StepResult(0.0, 0.0, self.state, text=why)
+        self.stale_since = None
         if self.state == "recovering":
             return self._recover(t, pose)
         new_plan = None

@@ -5,9 +5,10 @@ Time stamps are passed in by the caller (a ``rospy.Time`` or ``genpy.Time``).
 from __future__ import annotations
 
 import array
+import threading
 
 import numpy as np
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TransformStamped
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TransformStamped, Twist
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
 
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
@@ -113,3 +114,46 @@ def path_to_msg(points: np.ndarray, yaws: np.ndarray | None, stamp, frame_id: st
         ps.pose = pose2d_to_pose(Pose2D(float(x), float(y), float(yaw)))
         msg.poses.append(ps)
     return msg
+
+
+class CommandGate:
+    """``cmd_vel`` output of a navigation node: publishes commands, and one zero Twist when going
+    from moving to stopped (so other sources may take over).  ``halt()`` (a cancel, from another
+    thread) blocks further commands until ``resume()`` (a new goal).  ``pub`` has ``publish(Twist)``."""
+
+    def __init__(self, pub) -> None:
+        self.pub = pub
+        self.lock = threading.Lock()
+        self.moving = False
+        self.halted = False
+
+    def send(self, v: float, w: float) -> None:
+        """Publish (v m/s, w rad/s) unless halted; a zero command is a :meth:`stop`."""
+        if v == 0.0 and w == 0.0:
+            self.stop()
+            return
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = v, w
+        with self.lock:
+            if self.halted:
+                return
+            self.pub.publish(cmd)
+            self.moving = True
+
+    def stop(self) -> None:
+        """One zero Twist if the last command moved the robot."""
+        with self.lock:
+            if self.moving:
+                self.pub.publish(Twist())
+                self.moving = False
+
+    def halt(self) -> None:
+        """Stop now and send nothing more until :meth:`resume`."""
+        with self.lock:
+            self.halted = True
+        self.stop()
+
+    def resume(self) -> None:
+        """Allow commands again (a new goal was accepted)."""
+        with self.lock:
+            self.halted = False

@@ -119,3 +119,13 @@ def test_never_drives_into_obstacle_cells() -> None:
     end, _, status = simulate(ctrl, layers, start, t_max=20.0)
     assert status == "blocked"
     assert master.cost_at(end.x, end.y) < 253
+
+
+def test_arc_points_straight_and_turning() -> None:
+    from chefbot_navigation.controller import arc_points
+    xs, ys, yaws = arc_points(Pose2D(1.0, 1.0, math.pi / 2), 0.5, 0.0, np.array([0.0, 2.0]))
+    assert xs == pytest.approx([1.0, 1.0]) and ys == pytest.approx([1.0, 2.0])
+    assert yaws == pytest.approx([math.pi / 2] * 2)
+    # a quarter circle of radius 1 m from the origin, heading +x, turning left
+    xs, ys, yaws = arc_points(Pose2D(0.0, 0.0, 0.0), 1.0, 1.0, np.array([math.pi / 2]))
+    assert (xs[0], ys[0], yaws[0]) == pytest.approx((1.0, 1.0, math.pi / 2))

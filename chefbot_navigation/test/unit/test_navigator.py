@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.grid import GridInfo, OccupancyMap
@@ -170,3 +171,41 @@ def test_oscillation_runs_recoveries_in_order_then_aborts() -> None:
     assert not layers.obstacles.any(), "clear_costmaps recovery did not clear"
     # rotate recovery turned the robot about once around; back-off moved it backwards
     assert pose.distance(Pose2D(-2.0, -0.5)) > 0.1
+
+
+def test_no_usable_pose_stops_then_aborts_after_controller_patience() -> None:
+    nav, _ = make_nav(controller_patience=2.0)
+    nav.set_goal(Goal(2.0, 0.0, None), 0.0)
+    assert nav.step(0.0, Pose2D(-2.0, 0.0, 0.0)).outcome is None
+    for t in (0.1, 1.0, 2.0):
+        res = nav.step(t, None, "transform map -> base_footprint is 3.00 s old")
+        assert (res.v, res.w, res.outcome) == (0.0, 0.0, None)
+    res = nav.step(2.2, None, "no scan within sensor_timeout 1.0 s (last never)")
+    assert res.outcome == "aborted"
+    assert res.text == "Stopped for 2 s: no scan within sensor_timeout 1.0 s (last never)"
+    assert nav.goal is None
+
+
+def test_pose_back_in_time_resets_the_stale_clock() -> None:
+    nav, _ = make_nav(controller_patience=2.0)
+    nav.set_goal(Goal(2.0, 0.0, None), 0.0)
+    nav.step(0.0, None, "stale")
+    nav.step(1.5, Pose2D(-2.0, 0.0, 0.0))       # a fresh pose in between
+    assert nav.step(3.0, None, "stale").outcome is None
+    assert nav.step(5.1, None, "stale").outcome == "aborted"
+
+
+def test_parse_goal_and_faults() -> None:
+    from chefbot_navigation.navigator import GoalError, parse_goal, pose_age_fault, scan_fault
+    pose, has_yaw = parse_goal((1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 0.0), "ignore_yaw")
+    assert (pose.x, pose.y, has_yaw) == (1.0, 2.0, False)
+    pose, has_yaw = parse_goal((1.0, 2.0, 0.0), (0.0, 0.0, 1.0, 1.0), "reject")
+    assert has_yaw and abs(pose.yaw - math.pi / 2) < 1e-12
+    with pytest.raises(GoalError, match="not finite"):
+        parse_goal((math.nan, 0.0, 0.0), (0, 0, 0, 1), "reject")
+    with pytest.raises(GoalError, match="orientation"):
+        parse_goal((0.0, 0.0, 0.0), (0, 0, 0, 0), "reject")
+    assert scan_fault(10.0, 9.5, 1.0) == "" and scan_fault(10.0, None, 0.0) == ""
+    assert "last never" in scan_fault(10.0, None, 1.0) and "2.0 s ago" in scan_fault(10.0, 8.0, 1.0)
+    assert pose_age_fault(0.4, 0.5, "map", "base") == ""
+    assert "0.60 s old" in pose_age_fault(0.6, 0.5, "map", "base")
