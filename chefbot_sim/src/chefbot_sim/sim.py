@@ -25,12 +25,13 @@ import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim.bullet import BulletSim
+from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.world import Shape, World
@@ -82,14 +83,6 @@ class SimOptions:
             raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
         if self.rgb_width < 1 or self.rgb_height < 1:
             raise SimConfigError("rgb_width and rgb_height must be >= 1")
-
-
-class Event(NamedTuple):
-    """A reading: ``kind`` (one of SENSORS), sim time ``stamp`` (s) and ``data``."""
-
-    kind: str
-    stamp: float
-    data: Any
 
 
 @dataclass
@@ -363,14 +356,14 @@ class Simulator:
         raise KeyError(kind)
 
     # ------------------------------------------------------------ readings
-    def ground_truth(self) -> dict:
+    def ground_truth(self) -> GroundTruthData:
         """base_footprint pose in the world frame and its twist in the base frame."""
         pos, quat, lin, ang = self.bullet.base_state()
         rot = quat_to_matrix(quat)
         return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
                 "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_from_quaternion(*quat)}
 
-    def _odom(self) -> dict:
+    def _odom(self) -> OdomData:
         d = self.params.drive
         ang, vel = self.bullet.joint_states(self._wheels)
         pl, pr = self.s.wheel_prev
@@ -387,7 +380,7 @@ class Simulator:
         w = (vel[1] - vel[0]) * d.wheel_radius / d.wheel_separation
         return {"x": x, "y": y, "yaw": th, "v": float(v), "w": float(w)}
 
-    def _imu(self) -> dict:
+    def _imu(self) -> ImuData:
         imu = self.params.imu
         pos, rot = self.bullet.frame_pose(imu.frame)
         _, _, lin, ang = self.bullet.base_state()
@@ -414,7 +407,7 @@ class Simulator:
                 dirs.append(np.array([math.cos(a), math.sin(a) * math.cos(phi), math.sin(a) * math.sin(phi)]))
         return np.array(dirs)
 
-    def _sonar(self) -> dict:
+    def _sonar(self) -> UltrasonicData:
         """Range (m) of the nearest echo in the cone; +inf without an echo (REP 117)."""
         us = self.params.ultrasonic
         pos, rot = self.bullet.frame_pose(us.frame)

@@ -1,0 +1,84 @@
+"""Typed readings of the simulator (pure): what :meth:`chefbot_sim.sim.Simulator.step` returns.
+
+An :class:`Event` is a sensor ``kind``, the sim time ``stamp`` (s) and a payload
+whose shape depends on the kind (TypedDicts below; arrays are numpy).  The ROS
+node turns them into messages (``chefbot_sim.ros_io``), the benchmark and the
+unit tests read them directly.
+"""
+from __future__ import annotations
+
+from typing import Literal, NamedTuple, TypedDict, Union
+
+import numpy as np
+
+SensorKind = Literal["clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb",
+                     "bumper"]
+
+
+class JointStatesData(TypedDict):
+    """Joint names, positions (rad) and velocities (rad/s)."""
+
+    name: list[str]
+    position: np.ndarray
+    velocity: np.ndarray
+
+
+class GroundTruthData(TypedDict):
+    """True base pose in the world frame (position m, orientation quaternion xyzw) and twist in the base frame."""
+
+    position: np.ndarray
+    orientation: np.ndarray
+    linear: np.ndarray
+    angular: np.ndarray
+    x: float
+    y: float
+    yaw: float
+
+
+class OdomData(TypedDict):
+    """Wheel odometry: pose (m, m, rad) in the odom frame, forward speed (m/s) and turn rate (rad/s)."""
+
+    x: float
+    y: float
+    yaw: float
+    v: float
+    w: float
+
+
+class ImuData(TypedDict):
+    """IMU frame orientation (quaternion xyzw), gyro (rad/s), accelerometer (m/s^2) and their variances."""
+
+    orientation: np.ndarray
+    angular_velocity: np.ndarray
+    linear_acceleration: np.ndarray
+    gyro_variance: float
+    accel_variance: float
+
+
+class UltrasonicData(TypedDict):
+    """Sonar cone (rad), limits and reading (m; +inf without an echo, REP 117)."""
+
+    field_of_view: float
+    min_range: float
+    max_range: float
+    range: float
+
+
+class BumperData(TypedDict):
+    """Whether the robot touches anything, and the names of the bodies it touches."""
+
+    pressed: bool
+    bodies: list[str]
+
+
+# clock: sim time (s); depth: float32 (H, W) m; rgb: uint8 (H, W, 3)
+EventData = Union[float, np.ndarray, JointStatesData, GroundTruthData, OdomData, ImuData, UltrasonicData,
+                  BumperData]
+
+
+class Event(NamedTuple):
+    """A reading: ``kind``, sim time ``stamp`` (s) and ``data`` (the payload type of that kind)."""
+
+    kind: SensorKind
+    stamp: float
+    data: EventData

@@ -1,0 +1,77 @@
+"""chefbot_sim_node's parameters (pure): its own settings and the Simulator's options, read once.
+
+Defaults and units: ``param/sim.yaml`` and the package README.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from chefbot_common.params import read_config
+from chefbot_sim.sim import SimOptions
+
+DEFAULT_FIRMWARE_MAX_RTF = 1.0   # see README "Firmware-in-the-loop"
+STEPS_PER_BATCH = 12  # physics steps between checks of requests/pacing (0.05 s of sim time)
+# Firmware mode paces every physics step (4.2 ms) and never catches up in a burst:
+# launchpad_node checks encoder lines for impossible jumps against WALL time.
+FIRMWARE_STEPS_PER_BATCH = 1
+FIRMWARE_MAX_LAG = 0.02  # s of wall time behind schedule before the pacer restarts from now
+
+
+@dataclass(frozen=True)
+class SimNodeParams:
+    """The node's own params: world file, start pose (m, m, rad), pacing, frames."""
+
+    robot_description: str = field(default="", repr=False)  # URDF (global param, with its <chefbot_sim> block)
+    world: str = ""                   # path of a world file (YAML or SDF)
+    x: float = 0.0                    # m, start pose in the world frame
+    y: float = 0.0                    # m
+    yaw: float = 0.0                  # rad
+    real_time_factor: float = 1.0     # sim s per wall s (0 = as fast as possible)
+    firmware_max_rtf: float = DEFAULT_FIRMWARE_MAX_RTF  # firmware mode's cap on the above (0 = none)
+    publish_tf: bool = True           # odom -> base tf (plugin drive only)
+    world_frame: str = "map"          # frame of ground_truth/odom
+    gui: bool = False                 # pybullet's own window
+
+    def __post_init__(self) -> None:
+        if not self.robot_description:
+            raise ValueError("robot_description is not set (include chefbot_description's robot_state.launch.xml)")
+        if not self.world:
+            raise ValueError("world (path of a world file) is not set")
+        if not all(math.isfinite(v) for v in (self.x, self.y, self.yaw)):
+            raise ValueError(f"x, y and yaw must be finite, got ({self.x}, {self.y}, {self.yaw})")
+        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
+            raise ValueError(f"real_time_factor must be >= 0 (0 = as fast as possible), got {self.real_time_factor}")
+        if not self.firmware_max_rtf >= 0:
+            raise ValueError(f"firmware_max_rtf must be >= 0 (0 = no cap), got {self.firmware_max_rtf}")
+        if not self.world_frame:
+            raise ValueError("world_frame must be a non-empty frame name")
+
+    def effective_rtf(self, firmware: bool) -> float:
+        """Real-time factor to run at: firmware mode is held to ``firmware_max_rtf`` (its driver, PID
+        and watchdog chain runs on real-time timers)."""
+        cap = self.firmware_max_rtf
+        if firmware and cap > 0 and (self.real_time_factor <= 0 or self.real_time_factor > cap):
+            return cap
+        return self.real_time_factor
+
+
+def read_sim_params(get: Callable[[str, Any], Any]) -> tuple[SimNodeParams, SimOptions]:
+    """The node's params and the Simulator's options (every SimOptions field but time_step) as ``~name``."""
+    names = {f.name: f"~{f.name}" for f in dataclasses.fields(SimNodeParams)}
+    names["robot_description"] = "robot_description"
+    node = read_config(SimNodeParams, get, names)
+    opts = read_config(SimOptions, get, {f.name: f"~{f.name}" for f in dataclasses.fields(SimOptions)
+                                         if f.name != "time_step"})
+    opts.validate()
+    return node, opts
+
+
+def pacing(firmware: bool, rtf: float) -> tuple[int, float | None]:
+    """Physics steps per loop turn and the pacer's ``max_lag`` (s) for a drive mode and real-time factor."""
+    if firmware:
+        return (FIRMWARE_STEPS_PER_BATCH if rtf > 0 else STEPS_PER_BATCH), FIRMWARE_MAX_LAG
+    return STEPS_PER_BATCH, None

@@ -1,0 +1,96 @@
+"""Simulator readings -> ROS messages (message types, no rospy; stamps passed in).
+
+Odometry and depth images use bringup's builders (``chefbot_bringup.ros_io``),
+so the simulated robot's messages are built exactly like the real robot's.
+"""
+from __future__ import annotations
+
+import numpy as np
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, Range
+
+from chefbot_bringup.odometry import OdometryState
+from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs
+from chefbot_sim.events import GroundTruthData, ImuData, JointStatesData, OdomData, UltrasonicData
+
+_ZERO_COV = np.zeros((6, 6))
+
+__all__ = ["camera_info_msg", "depth_to_image", "ground_truth_msg", "imu_msg", "joint_state_msg", "odom_msgs",
+           "range_msg", "rgb_to_image"]
+
+
+def _diag3(v: float) -> list[float]:
+    """Row-major 3x3 covariance with ``v`` on the diagonal."""
+    return [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]
+
+
+def joint_state_msg(d: JointStatesData, stamp) -> JointState:
+    """sensor_msgs/JointState of the wheel (and other) joints."""
+    m = JointState()
+    m.header.stamp = stamp
+    m.name = d["name"]
+    m.position, m.velocity = d["position"].tolist(), d["velocity"].tolist()
+    return m
+
+
+def ground_truth_msg(d: GroundTruthData, stamp, world_frame: str, base_frame: str) -> Odometry:
+    """nav_msgs/Odometry of the true pose in the world frame (tests and benchmarks only)."""
+    m = Odometry()
+    m.header.stamp, m.header.frame_id, m.child_frame_id = stamp, world_frame, base_frame
+    p, o, tw = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist
+    p.x, p.y, p.z = d["position"].tolist()
+    o.x, o.y, o.z, o.w = d["orientation"].tolist()
+    tw.linear.x, tw.linear.y, tw.linear.z = d["linear"].tolist()
+    tw.angular.x, tw.angular.y, tw.angular.z = d["angular"].tolist()
+    return m
+
+
+def odom_msgs(d: OdomData, stamp, odom_frame: str, base_frame: str):
+    """Wheel odometry as nav_msgs/Odometry plus the odom -> base transform (bringup's builder)."""
+    st = OdometryState(stamp.to_sec(), d["x"], d["y"], d["yaw"], d["v"], d["w"], _ZERO_COV, _ZERO_COV)
+    return odometry_to_msgs(st, stamp, odom_frame, base_frame)
+
+
+def imu_msg(d: ImuData, stamp, frame: str) -> Imu:
+    """sensor_msgs/Imu with the simulated noise as covariances."""
+    m = Imu()
+    m.header.stamp, m.header.frame_id = stamp, frame
+    o, g, a = m.orientation, m.angular_velocity, m.linear_acceleration
+    o.x, o.y, o.z, o.w = d["orientation"].tolist()
+    g.x, g.y, g.z = d["angular_velocity"].tolist()
+    a.x, a.y, a.z = d["linear_acceleration"].tolist()
+    m.orientation_covariance = _diag3(1e-6)
+    m.angular_velocity_covariance = _diag3(d["gyro_variance"])
+    m.linear_acceleration_covariance = _diag3(d["accel_variance"])
+    return m
+
+
+def range_msg(d: UltrasonicData, stamp, frame: str) -> Range:
+    """sensor_msgs/Range of the ultrasonic sensor."""
+    m = Range()
+    m.header.stamp, m.header.frame_id = stamp, frame
+    m.radiation_type = Range.ULTRASOUND
+    m.field_of_view, m.min_range, m.max_range, m.range = (d["field_of_view"], d["min_range"], d["max_range"],
+                                                          d["range"])
+    return m
+
+
+def camera_info_msg(info: dict, frame: str) -> CameraInfo:
+    """sensor_msgs/CameraInfo from :meth:`chefbot_sim.sim.CameraModel.info` (no rectification)."""
+    m = CameraInfo()
+    m.header.frame_id = frame
+    m.width, m.height = info["width"], info["height"]
+    m.distortion_model = info["distortion_model"]
+    m.D, m.K, m.P = info["D"], info["K"], info["P"]
+    m.R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    return m
+
+
+def rgb_to_image(rgb: np.ndarray, stamp, frame: str) -> Image:
+    """sensor_msgs/Image (rgb8) of an (H, W, 3) uint8 array."""
+    m = Image()
+    m.header.stamp, m.header.frame_id = stamp, frame
+    m.height, m.width = rgb.shape[:2]
+    m.encoding, m.is_bigendian, m.step = "rgb8", 0, 3 * rgb.shape[1]
+    m.data = rgb.tobytes()
+    return m

@@ -1,0 +1,93 @@
+"""chefbot_sim_node's parameters, request queue and message builders (no master)."""
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+import pytest
+
+from chefbot_common.params import ParamError
+from chefbot_sim.node_params import FIRMWARE_MAX_LAG, STEPS_PER_BATCH, pacing, read_sim_params
+from chefbot_sim.requests import SimRequests
+
+
+def getter(d: dict):
+    return lambda name, default: d.get(name, default)
+
+
+BASE = {"robot_description": "<robot name='r'/>", "~world": "/tmp/w.yaml"}
+
+
+def test_defaults_and_sim_options() -> None:
+    node, opts = read_sim_params(getter({**BASE, "~x": 1, "~yaw": 0.5, "~seed": 3, "~drive": "firmware"}))
+    assert (node.x, node.y, node.yaw, node.real_time_factor) == (1.0, 0.0, 0.5, 1.0)
+    assert opts.seed == 3 and opts.drive == "firmware"
+    assert "robot name" not in repr(node)
+
+
+@pytest.mark.parametrize("params,match", [
+    ({"~world": "/tmp/w.yaml"}, "robot_description"),
+    ({"robot_description": "<robot/>"}, "world"),
+    ({**BASE, "~x": math.nan}, "~x"),
+    ({**BASE, "~real_time_factor": -1.0}, "~real_time_factor"),
+    ({**BASE, "~gui": "yes"}, "~gui"),
+    ({**BASE, "~drive": "teleport"}, "drive"),
+    ({**BASE, "~seed": 1.5}, "~seed"),
+])
+def test_bad_params_are_named(params: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        read_sim_params(getter(params))
+
+
+def test_param_error_type() -> None:
+    with pytest.raises(ParamError):
+        read_sim_params(getter({**BASE, "~firmware_max_rtf": -2.0}))
+
+
+def test_firmware_caps_real_time_factor_and_paces_every_step() -> None:
+    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 3.0}))
+    assert node.effective_rtf(firmware=False) == 3.0
+    assert node.effective_rtf(firmware=True) == 1.0
+    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 0.0, "~firmware_max_rtf": 0.0}))
+    assert node.effective_rtf(firmware=True) == 0.0
+    assert pacing(False, 1.0) == (STEPS_PER_BATCH, None)
+    assert pacing(True, 1.0) == (1, FIRMWARE_MAX_LAG)
+
+
+def test_requests_run_in_order_and_errors_are_logged() -> None:
+    reqs, out, logs = SimRequests(), [], []
+    reqs.put(lambda: out.append(1))
+    reqs.put_guarded(lambda: (_ for _ in ()).throw(ValueError("no such body")), "remove", (ValueError,), logs.append)
+    reqs.put(lambda: out.append(2))
+    reqs.run_pending()
+    assert out == [1, 2] and logs == ["chefbot_sim: remove rejected: no such body"]
+
+
+def test_call_waits_for_the_loop_and_gives_up_on_stop() -> None:
+    reqs, ran = SimRequests(), []
+    loop = threading.Thread(target=lambda: [reqs.run_pending() or threading.Event().wait(0.01) for _ in range(500)
+                                            if not ran])
+    loop.start()
+    reqs.call(lambda: ran.append(True), stop=lambda: False, poll=0.01)
+    loop.join()
+    assert ran == [True]
+    reqs.call(lambda: None, stop=lambda: True, poll=0.01)   # nobody runs it: returns on stop
+
+
+def test_message_builders() -> None:
+    rospy_time = pytest.importorskip("genpy").Time
+    from chefbot_sim import ros_io
+    t = rospy_time.from_sec(2.5)
+    odom, tf = ros_io.odom_msgs({"x": 1.0, "y": 2.0, "yaw": math.pi / 2, "v": 0.3, "w": 0.1}, t, "odom", "base")
+    assert (odom.header.frame_id, odom.child_frame_id, odom.pose.pose.position.x) == ("odom", "base", 1.0)
+    assert odom.pose.pose.orientation.z == pytest.approx(math.sqrt(0.5))
+    assert tf.transform.translation.y == 2.0 and odom.twist.twist.angular.z == 0.1
+    img = ros_io.rgb_to_image(np.zeros((2, 3, 3), np.uint8), t, "cam")
+    assert (img.height, img.width, img.step, img.encoding, len(img.data)) == (2, 3, 9, "rgb8", 18)
+    depth = ros_io.depth_to_image(np.ones((2, 3), np.float32), t, "cam")
+    assert (depth.encoding, depth.step) == ("32FC1", 12)
+    imu = ros_io.imu_msg({"orientation": np.array([0, 0, 0, 1.0]), "angular_velocity": np.zeros(3),
+                          "linear_acceleration": np.array([0, 0, 9.81]), "gyro_variance": 0.01,
+                          "accel_variance": 0.02}, t, "imu")
+    assert imu.angular_velocity_covariance[4] == 0.01 and imu.linear_acceleration.z == 9.81
