@@ -12,7 +12,6 @@ whatever the real-time factor.  Speeds and delays are measured in sim time.
 import math
 import os
 import signal
-import threading
 import unittest
 import xmlrpc.client
 
@@ -26,7 +25,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from chefbot_common.geometry import yaw_from_quaternion
-from chefbot_common.rostest_helpers import SimClockWaits
+from chefbot_common.rostest_helpers import SimRecorder
 
 WALL_TIMEOUT = 120.0  # s of wall time for any single condition
 WATCHDOG = 0.5        # s, the firmware's watchdog_ms (PROTOCOL.md)
@@ -44,50 +43,27 @@ def xy(m: Odometry) -> np.ndarray:
     return np.array([p.x, p.y])
 
 
-class Recorder(SimClockWaits):
+class Recorder(SimRecorder):
     wall_timeout = WALL_TIMEOUT
     stopped = staticmethod(rospy.is_shutdown)
 
     def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.clock = -1.0
-        self.cmd: tuple[float, float] | None = None
+        super().__init__(["gt", "odom"])
         self.fw_state: list[tuple[float, str]] = []
-        self.logs: dict[str, list] = {"gt": [], "odom": []}
         self.pub = rospy.Publisher("cmd_vel", Twist, queue_size=10, tcp_nodelay=True)
         rospy.Subscriber("/clock", Clock, self.on_clock, tcp_nodelay=True)
         rospy.Subscriber("ground_truth/odom", Odometry, lambda m: self.add("gt", m), tcp_nodelay=True)
         rospy.Subscriber("odom", Odometry, lambda m: self.add("odom", m), tcp_nodelay=True)
         rospy.Subscriber("chefbot_sim/firmware_state", String, self.on_fw_state)
 
-    def add(self, key: str, msg: Odometry) -> None:
-        with self.lock:
-            self.logs[key].append((msg.header.stamp.to_sec(), msg))
-
     def on_fw_state(self, msg: String) -> None:
         with self.lock:
             self.fw_state.append((self.clock, msg.data))
 
-    def on_clock(self, msg: Clock) -> None:
-        with self.lock:
-            self.clock = msg.clock.to_sec()
-            cmd = self.cmd
-        if cmd is not None:
-            t = Twist()
-            t.linear.x, t.angular.z = cmd
-            self.pub.publish(t)
-
-    def set_cmd(self, cmd: tuple[float, float] | None) -> None:
-        with self.lock:
-            self.cmd = cmd
-
-    def between(self, key: str, t0: float, t1: float = math.inf) -> list:
-        with self.lock:
-            return [m for s, m in self.logs[key] if t0 <= s <= t1]
-
-    def latest(self, key: str, after: float) -> Odometry:
-        self.wait_for(lambda: bool(self.between(key, after)), f"{key} stamped after t={after:.2f}")
-        return self.between(key, after)[-1]
+    def publish_cmd(self, v: float, w: float) -> None:
+        t = Twist()
+        t.linear.x, t.angular.z = v, w
+        self.pub.publish(t)
 
     def wait_stopped(self, after: float) -> float:
         """Sim time from which ground truth has stood still for 0.3 s (|v| < 1 cm/s)."""

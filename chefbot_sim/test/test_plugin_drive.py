@@ -6,7 +6,6 @@ published from the /clock callback, so commanding follows sim time whatever
 the real-time factor.
 """
 import math
-import threading
 import unittest
 
 import numpy as np
@@ -17,22 +16,19 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, LaserScan, Range
 
-from chefbot_common.rostest_helpers import SimClockWaits
+from chefbot_common.rostest_helpers import SimRecorder
 
 WALL_TIMEOUT = 90.0  # s of wall time for any single condition
 SONAR_X = 0.1425     # m, ultrasonic_link ahead of base_footprint (chefbot.xacro)
 DEPTH_X = 0.1615     # m, camera_depth_frame ahead of base_footprint
 
 
-class Recorder(SimClockWaits):
+class Recorder(SimRecorder):
     wall_timeout = WALL_TIMEOUT
     stopped = staticmethod(rospy.is_shutdown)
 
     def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.clock = -1.0
-        self.cmd: tuple[float, float] | None = None
-        self.logs: dict[str, list] = {"gt": [], "odom": [], "imu": [], "sonar": [], "depth": [], "scan": []}
+        super().__init__(["gt", "odom", "imu", "sonar", "depth", "scan"])
         self.pub = rospy.Publisher("cmd_vel", Twist, queue_size=10, tcp_nodelay=True)
         self.teleport = rospy.Publisher("chefbot_sim/teleport", Pose2D, queue_size=1, latch=True)
         rospy.Subscriber("/clock", Clock, self.on_clock, tcp_nodelay=True)
@@ -43,26 +39,10 @@ class Recorder(SimClockWaits):
         rospy.Subscriber("camera/depth/image_raw", Image, lambda m: self.add("depth", m), buff_size=2**22)
         rospy.Subscriber("scan", LaserScan, lambda m: self.add("scan", m))
 
-    def add(self, key: str, msg) -> None:
-        with self.lock:
-            self.logs[key].append((msg.header.stamp.to_sec(), msg))
-
-    def on_clock(self, msg: Clock) -> None:
-        with self.lock:
-            self.clock = msg.clock.to_sec()
-            cmd = self.cmd
-        if cmd is not None:
-            t = Twist()
-            t.linear.x, t.angular.z = cmd
-            self.pub.publish(t)
-
-    def between(self, key: str, t0: float, t1: float) -> list:
-        with self.lock:
-            return [m for s, m in self.logs[key] if t0 <= s <= t1]
-
-    def latest(self, key: str, after: float):
-        self.wait_for(lambda: bool(self.between(key, after, math.inf)), f"{key} after t={after:.2f}")
-        return self.between(key, after, math.inf)[-1]
+    def publish_cmd(self, v: float, w: float) -> None:
+        t = Twist()
+        t.linear.x, t.angular.z = v, w
+        self.pub.publish(t)
 
 
 def xy(m: Odometry) -> np.ndarray:

@@ -7,6 +7,7 @@ pass ``stop=rospy.is_shutdown`` so a shutdown ends the wait at once.
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -49,3 +50,50 @@ class SimClockWaits:
     def wait_until(self, t: float) -> None:
         """Wait until the simulation clock has reached ``t`` s."""
         self.wait_for(lambda: self.now() >= t, f"sim time {t:.2f}")
+
+
+class SimRecorder(SimClockWaits):
+    """A rostest recorder on the sim clock: stamped messages by key, and a velocity command
+    re-sent on every /clock tick (so it flows at sim rate however fast the sim runs).
+
+    Subclasses subscribe their topics to :meth:`add` and :meth:`on_clock`, and implement
+    :meth:`publish_cmd` (they own the message types).
+    """
+
+    def __init__(self, keys: list[str]) -> None:
+        self.lock = threading.Lock()
+        self.clock = -1.0
+        self.cmd: tuple[float, float] | None = None
+        self.logs: dict[str, list] = {k: [] for k in keys}
+
+    def publish_cmd(self, v: float, w: float) -> None:
+        """Send (v m/s, w rad/s) to the robot."""
+        raise NotImplementedError
+
+    def add(self, key: str, msg) -> None:
+        """Record a message with a std_msgs/Header under ``key`` by its stamp (s)."""
+        with self.lock:
+            self.logs[key].append((msg.header.stamp.to_sec(), msg))
+
+    def on_clock(self, msg) -> None:
+        """rosgraph_msgs/Clock callback: new sim time; re-send the current command."""
+        with self.lock:
+            self.clock = msg.clock.to_sec()
+            cmd = self.cmd
+        if cmd is not None:
+            self.publish_cmd(*cmd)
+
+    def set_cmd(self, cmd: tuple[float, float] | None) -> None:
+        """Command (v, w) to keep sending, or None to send nothing."""
+        with self.lock:
+            self.cmd = cmd
+
+    def between(self, key: str, t0: float, t1: float = math.inf) -> list:
+        """Messages of ``key`` stamped in [t0, t1] s."""
+        with self.lock:
+            return [m for s, m in self.logs[key] if t0 <= s <= t1]
+
+    def latest(self, key: str, after: float):
+        """The newest message of ``key`` stamped after ``after`` s (waits for one)."""
+        self.wait_for(lambda: bool(self.between(key, after)), f"{key} stamped after t={after:.2f}")
+        return self.between(key, after)[-1]
