@@ -9,7 +9,11 @@ wrap and vice versa.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
+
+from chefbot_common.params import ParamError
 
 INT16_RANGE = (-32768, 32767)
 INT32_RANGE = (-(2**31), 2**31 - 1)
@@ -58,6 +62,7 @@ class TickUnwrapper:
 
     @property
     def initialised(self) -> bool:
+        """True once a first reading set the baseline."""
         return self._last_raw is not None
 
     def reset(self) -> None:
@@ -76,3 +81,25 @@ class TickUnwrapper:
                 self._offset -= rng.span
         self._last_raw = raw
         return raw + self._offset
+
+
+def read_encoder_range(get: Callable[[str, Any], Any], default: tuple[int, int] = INT32_RANGE) -> EncoderRange:
+    """encoder_min/max and the wrap thresholds from parameters: global as in the book, private as fallback.
+
+    ``get`` is ``rospy.get_param``; wrong types or values raise ParamError naming the parameter.
+    """
+    def param(name: str, fallback: Any) -> Any:
+        return get(name, get("~" + name, fallback))
+
+    values = {}
+    for name, fallback in (("encoder_min", default[0]), ("encoder_max", default[1]),
+                           ("wheel_low_wrap", None), ("wheel_high_wrap", None)):
+        v = param(name, fallback)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise ParamError(f"parameter {name} must be a number, got {v!r}")
+        values[name] = v
+    try:
+        return EncoderRange(int(values["encoder_min"]), int(values["encoder_max"]),
+                            values["wheel_low_wrap"], values["wheel_high_wrap"])
+    except ValueError as exc:
+        raise ParamError(str(exc)) from exc

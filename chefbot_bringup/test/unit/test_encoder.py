@@ -32,3 +32,23 @@ def test_default_wrap_thresholds_as_in_book():
 def test_bad_range_rejected():
     with pytest.raises(ValueError, match="encoder_max"):
         EncoderRange(10, 10)
+
+
+def test_read_encoder_range_from_params() -> None:
+    import pytest
+
+    from chefbot_bringup.encoder import INT16_RANGE, read_encoder_range
+    from chefbot_common.params import ParamError
+
+    def getter(d):
+        return lambda name, default: d.get(name, default)
+
+    r = read_encoder_range(getter({}), INT16_RANGE)
+    assert (r.encoder_min, r.encoder_max) == INT16_RANGE
+    r = read_encoder_range(getter({"~encoder_min": -100, "encoder_max": 100, "wheel_low_wrap": -50}))
+    assert (r.encoder_min, r.encoder_max, r.low_wrap) == (-100, 100, -50)
+    assert read_encoder_range(getter({"encoder_min": 0, "~encoder_min": 5, "encoder_max": 10})).encoder_min == 0
+    with pytest.raises(ParamError, match="encoder_max"):
+        read_encoder_range(getter({"encoder_max": "big"}))
+    with pytest.raises(ParamError, match="must be greater"):
+        read_encoder_range(getter({"encoder_min": 10, "encoder_max": 0}))
