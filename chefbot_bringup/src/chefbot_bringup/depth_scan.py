@@ -39,6 +39,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ScanConfig:
+    """depth_to_scan settings: rows merged, valid range (m), scan period (s), output frame."""
+
     scan_height: int = 10        # image rows merged into the scan (pixels)
     range_min: float = 0.45      # shortest valid range (m)
     range_max: float = 10.0      # longest valid range (m)
@@ -58,6 +60,8 @@ class ScanConfig:
 
 @dataclass(frozen=True)
 class Intrinsics:
+    """Pinhole intrinsics of the depth camera that the scan needs (px)."""
+
     fx: float
     cx: float
     cy: float
@@ -80,6 +84,8 @@ class Intrinsics:
 
 @dataclass
 class Scan:
+    """One laser scan: angles (rad) and a range (m) per image column."""
+
     angle_min: float        # rad (float32-rounded, as the message carries it)
     angle_max: float
     angle_increment: float

@@ -53,28 +53,38 @@ def crc8(data: bytes) -> int:
 # ----------------------------------------------------------------- messages
 @dataclass(frozen=True)
 class Battery:
+    """`b` line: battery voltage (V)."""
+
     volts: float
 
 
 @dataclass(frozen=True)
 class TimeStamp:
+    """`t` line: board clock and measured status period."""
+
     micros: int          # board clock, µs (wraps at 2^32)
     loop_s: float        # status period measured on the board, s
 
 
 @dataclass(frozen=True)
 class Encoders:
+    """`e` line: cumulative encoder ticks of both wheels."""
+
     left: int            # cumulative ticks, int32
     right: int
 
 
 @dataclass(frozen=True)
 class Ultrasonic:
+    """`u` line: sonar distance (cm)."""
+
     cm: float            # 0 = no echo in the book's firmware and ours
 
 
 @dataclass(frozen=True)
 class SpeedEcho:
+    """`s` line: the motor commands the board applies, and its drive state."""
+
     left: float          # the motor command the board applies (book: PWM units)
     right: float
     state: str | None    # our firmware: "idle" | "run" | "timeout"; None from the book's
@@ -82,6 +92,8 @@ class SpeedEcho:
 
 @dataclass(frozen=True)
 class Quaternion:
+    """`i` line: the IMU orientation quaternion."""
+
     x: float
     y: float
     z: float
@@ -90,11 +102,15 @@ class Quaternion:
 
 @dataclass(frozen=True)
 class Hello:
+    """`v` line: protocol and firmware versions, settings."""
+
     fields: tuple[str, ...]  # protocol version, firmware version, settings (PROTOCOL.md)
 
 
 @dataclass(frozen=True)
 class Diagnostics:
+    """`d` line: the board's error and event counters."""
+
     counters: tuple[int, ...]
 
 

@@ -64,11 +64,13 @@ def depth_to_image(depth: np.ndarray, stamp, frame_id: str) -> Image:
 
 
 def intrinsics_from_camera_info(msg: CameraInfo) -> Intrinsics:
+    """Depth-camera intrinsics from a CameraInfo message."""
     return Intrinsics.from_matrices(list(msg.K), list(msg.P), msg.width, msg.height)
 
 
 def scan_to_msg(scan: Scan, stamp, frame_id: str, range_min: float, range_max: float,
                 scan_time: float) -> LaserScan:
+    """sensor_msgs/LaserScan of a :class:`Scan`."""
     msg = LaserScan()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id

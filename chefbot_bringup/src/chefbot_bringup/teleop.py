@@ -44,6 +44,8 @@ HELP = __doc__.split("::", 1)[1].rstrip() if __doc__ else ""
 
 @dataclass(frozen=True)
 class TeleopConfig:
+    """Keyboard teleop speeds (m/s, rad/s), their limits and the key timeout (s)."""
+
     linear_speed: float = 0.2    # initial forward speed (m/s)
     angular_speed: float = 1.0   # initial turn rate (rad/s)
     max_linear: float = 0.35     # upper limit for the forward speed (m/s)
@@ -135,6 +137,7 @@ class KeyTeleop:
         return max(0.0, min(waits))
 
     def status(self) -> str:
+        """One status line: the set speeds and the command now."""
         v, w = self.velocity
         return (f"speed {self.linear_speed:.2f} m/s  turn {self.angular_speed:.2f} rad/s  "
                 f"now v={v:+.2f} w={w:+.2f}")

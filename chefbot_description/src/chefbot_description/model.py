@@ -129,6 +129,8 @@ class Geometry:
 
 @dataclass(frozen=True)
 class Link:
+    """A URDF link: inertial, collision and visual geometry."""
+
     name: str
     inertial: Inertial | None
     collisions: tuple[Geometry, ...]
@@ -152,6 +154,8 @@ class Joint:
 
 @dataclass(frozen=True)
 class RobotModel:
+    """A parsed URDF: links and joints by name."""
+
     name: str
     links: Mapping[str, Link]
     joints: Mapping[str, Joint]
@@ -435,6 +439,8 @@ class DepthCameraParams:
 
 @dataclass(frozen=True)
 class ImuParams:
+    """Simulated IMU: frame, rate (Hz) and noise."""
+
     frame: str
     update_rate: float  # Hz
     gyro_noise_stddev: float  # rad/s
@@ -481,6 +487,8 @@ class CliffSensorParams:
 
 @dataclass(frozen=True)
 class BumperParams:
+    """Simulated bumper: the link whose contacts count."""
+
     link: str  # contacts of this link with the world count as a bump
 
 

@@ -120,6 +120,7 @@ class RegulatedPurePursuit:
         self.reset()
 
     def reset(self) -> None:
+        """Forget the motion state (speeds, time, progress along the path)."""
         self.v = 0.0
         self.w = 0.0
         self.t: float | None = None
@@ -127,6 +128,7 @@ class RegulatedPurePursuit:
         self.xy_reached = False
 
     def set_path(self, points: np.ndarray, goal_yaw: float | None) -> None:
+        """Follow ``points`` (N x 2, m) to a final heading ``goal_yaw`` (rad; None = any)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         if len(pts) == 0:
             raise ValueError("empty path")
@@ -195,6 +197,7 @@ class RegulatedPurePursuit:
 
     # --- main ----------------------------------------------------------------------------------
     def compute(self, pose: Pose2D, t: float, costmap: Costmap) -> Command:
+        """Velocity command and status for the robot at ``pose`` at time ``t`` (s)."""
         p = self.p
         dt = self._dt(t)
         if len(self.path) == 0:

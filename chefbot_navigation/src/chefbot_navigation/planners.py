@@ -226,6 +226,7 @@ class DijkstraPlanner:
         return _mcp_path(costs, s, g)
 
     def plan(self, costmap: Costmap, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
+        """Cheapest path from ``start`` to ``goal`` (m) on the costmap; PlanningError if none."""
         t0 = time.perf_counter()
         costs, s, g = self._prepare(costmap, start, goal)
         cells = self._grid_path(costs, s, g)

@@ -360,6 +360,7 @@ class BulletSim:
         self._c.restoreState(stateId=state_id)
 
     def remove_state(self, state_id: int) -> None:
+        """Free a snapshot taken with :meth:`save_state`."""
         self._c.removeState(state_id)
 
     # ------------------------------------------------------------ sensing
@@ -411,6 +412,7 @@ class BulletSim:
         return out
 
     def body_name(self, body: int) -> str:
+        """Name of a loaded body id ("floor", or the id as text when unknown)."""
         for k, v in self.bodies.items():
             if v == body:
                 return k

@@ -208,6 +208,7 @@ class FirmwareDrive:
         self.board.fw.set_imu_quaternion(x, y, z, w)
 
     def set_battery(self, volts: float) -> None:
+        """Battery voltage (V) the board measures."""
         self.board.fw.set_battery_volts(float(volts))
 
     def close(self) -> None:

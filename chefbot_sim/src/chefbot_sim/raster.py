@@ -33,6 +33,7 @@ class Grid:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """(rows, columns) of the grid."""
         return self.occupied.shape
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:

@@ -60,6 +60,7 @@ class Shape:
 
     @property
     def yaw(self) -> float:
+        """Heading (rad) of the shape about z."""
         return self.rpy[2]
 
     def rotation(self) -> np.ndarray:
@@ -129,6 +130,7 @@ class World:
     source: str = "<memory>"
 
     def shape(self, name: str) -> Shape:
+        """The shape named ``name`` (KeyError if none)."""
         for s in self.shapes:
             if s.name == name:
                 return s

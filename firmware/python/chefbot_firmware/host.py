@@ -59,6 +59,7 @@ class MotorOutput:
 
     @property
     def braking(self) -> bool:
+        """True when both bridge inputs are equal (motor shorted: brake)."""
         return self.ina == self.inb
 
 
@@ -140,6 +141,7 @@ class FirmwareHost:
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
+        """Destroy the firmware instance (idempotent)."""
         if self._h:
             self._lib.cfw_destroy(self._h)
             self._h = None
@@ -189,6 +191,7 @@ class FirmwareHost:
         return int(self._lib.cfw_now_us(self._h))
 
     def set_clock_us(self, us: int) -> None:
+        """Set the board clock (µs, wraps at 2^32)."""
         self._lib.cfw_set_clock_us(self._h, us & 0xFFFFFFFF)
 
     def read_tx(self, max_bytes: int = 1 << 20) -> bytes:
@@ -203,6 +206,7 @@ class FirmwareHost:
 
     # ------------------------------------------------------------ outputs
     def motor(self, side: int) -> MotorOutput:
+        """Current H-bridge outputs of one side."""
         ina, inb, pwm = ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
         self._lib.cfw_get_motor(self._h, _side(side), ctypes.byref(ina), ctypes.byref(inb), ctypes.byref(pwm))
         return MotorOutput(ina.value, inb.value, pwm.value)
@@ -218,6 +222,7 @@ class FirmwareHost:
 
     @property
     def drive_state(self) -> str:
+        """The firmware's drive state (idle, run, timeout ...)."""
         return DRIVE_STATES[self._lib.cfw_drive_state(self._h)]
 
     # ------------------------------------------------------------ inputs
@@ -236,9 +241,11 @@ class FirmwareHost:
         self._lib.cfw_wheel_advance(self._h, _side(side), int(edges))
 
     def set_encoder_count(self, side: int, count: int) -> None:
+        """Overwrite one side's encoder counter (ticks)."""
         self._lib.cfw_set_encoder_count(self._h, _side(side), int(count))
 
     def encoder_count(self, side: int) -> int:
+        """One side's encoder counter (ticks)."""
         return int(self._lib.cfw_encoder_count(self._h, _side(side)))
 
     def set_ultrasonic_echo_us(self, us: int) -> None:
@@ -258,9 +265,11 @@ class FirmwareHost:
         self._lib.cfw_clear_imu(self._h)
 
     def set_battery_raw(self, raw: int) -> None:
+        """Battery ADC reading (raw counts) the firmware sees."""
         self._lib.cfw_set_battery_raw(self._h, int(raw))
 
     def set_battery_volts(self, volts: float) -> None:
+        """Battery voltage (V) the firmware sees."""
         self._lib.cfw_set_battery_volts(self._h, float(volts))
 
     # ------------------------------------------------------------ counters

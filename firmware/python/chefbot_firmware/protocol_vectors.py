@@ -10,6 +10,8 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class CrcVector:
+    """A CRC-8 test vector: data, expected CRC and its line in the file."""
+
     data: bytes
     crc: int
     line_no: int
@@ -40,12 +42,15 @@ class TxVector:
 
 @dataclass(frozen=True)
 class Vectors:
+    """All test vectors of protocol_vectors.txt, by kind."""
+
     crc: tuple[CrcVector, ...]
     rx: tuple[RxVector, ...]
     tx: tuple[TxVector, ...]
 
 
 def vectors_path() -> Path:
+    """Path of the shared protocol_vectors.txt."""
     return Path(os.path.realpath(__file__)).parents[2] / "protocol_vectors.txt"
 
 
@@ -82,6 +87,7 @@ def _event(text: str) -> tuple:
 
 
 def load_vectors(path: Path | None = None) -> Vectors:
+    """Parse protocol_vectors.txt (or ``path``) into :class:`Vectors`."""
     crc, rx, tx = [], [], []
     for no, raw in enumerate((path or vectors_path()).read_text(encoding="ascii").splitlines(), start=1):
         if not raw or raw.startswith("#"):

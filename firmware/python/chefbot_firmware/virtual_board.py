@@ -142,6 +142,7 @@ class VirtualBoard:
 
     @property
     def path(self) -> str:
+        """Device path the driver opens (the pty slave)."""
         return self.port.path
 
     def turn_wheel(self, side: int, dangle: float) -> None:
@@ -153,6 +154,7 @@ class VirtualBoard:
             self.fw.wheel_advance(side, whole)
 
     def step(self, dt: float) -> None:
+        """Advance the board by ``dt`` s: serial in, firmware, motors, encoders, serial out."""
         if dt <= 0:
             return
         data = self.port.read()
@@ -173,6 +175,7 @@ class VirtualBoard:
         self.port = PtyPort(link)
 
     def close(self) -> None:
+        """Close the pty and destroy the firmware instance."""
         self.port.close()
         self.fw.close()
 
