@@ -1,5 +1,5 @@
 """ROS glue shared by the navigation nodes (imports rospy/tf2): timers that survive time jumping
-back, planar tf lookups."""
+back, planar tf lookups (:class:`PlanarTf`)."""
 from __future__ import annotations
 
 import threading
@@ -9,6 +9,7 @@ import rospy
 import tf2_ros
 
 from chefbot_common.geometry import Pose2D
+from chefbot_navigation.navigator import pose_age_fault
 from chefbot_navigation.ros_io import transform_to_pose2d
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
@@ -46,12 +47,31 @@ def revive_action_status_timer(server, who: str) -> None:
         srv.status_timer = rospy.Timer(timer._period, srv.publish_status_async)
 
 
-def lookup_pose2d(buffer: tf2_ros.Buffer, target: str, source: str, stamp: rospy.Time | None = None,
-                  timeout: float = 0.0) -> tuple[Pose2D | None, float, str]:
-    """Planar pose of ``source`` in ``target`` (latest when ``stamp`` is None), its stamp (s), and ''
-    -- or (None, nan, why) when tf has no such transform."""
-    try:
-        t = buffer.lookup_transform(target, source, stamp or rospy.Time(0), rospy.Duration(timeout))
-    except TF_ERRORS as exc:
-        return None, float("nan"), f"no transform {target} -> {source}: {exc}"
-    return transform_to_pose2d(t), t.header.stamp.to_sec(), ""
+class PlanarTf:
+    """A tf2 buffer and listener answering planar questions about frames in one global frame."""
+
+    def __init__(self, global_frame: str, cache_time: float = 10.0) -> None:
+        self.global_frame = global_frame
+        self.buffer = tf2_ros.Buffer(cache_time=rospy.Duration(cache_time))
+        self.listener = tf2_ros.TransformListener(self.buffer)
+
+    def lookup(self, source: str, stamp: rospy.Time | None = None,
+               timeout: float = 0.0) -> tuple[Pose2D | None, float, str]:
+        """Planar pose of ``source`` in the global frame (latest when ``stamp`` is None), its stamp (s),
+        and '' -- or (None, nan, why) when tf has no such transform."""
+        try:
+            t = self.buffer.lookup_transform(self.global_frame, source, stamp or rospy.Time(0),
+                                             rospy.Duration(timeout))
+        except TF_ERRORS as exc:
+            return None, float("nan"), f"no transform {self.global_frame} -> {source}: {exc}"
+        return transform_to_pose2d(t), t.header.stamp.to_sec(), ""
+
+    def fresh_pose(self, child: str, tolerance: float) -> tuple[Pose2D | None, str]:
+        """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why."""
+        pose, stamp, why = self.lookup(child)
+        why = why or pose_age_fault(rospy.get_time() - stamp, tolerance, self.global_frame, child)
+        return (None, why) if why else (pose, "")
+
+    def clear(self) -> None:
+        """Forget every transform (time jumped back)."""
+        self.buffer.clear()
