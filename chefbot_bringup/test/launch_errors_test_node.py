@@ -75,6 +75,18 @@ class TestLaunchErrors(unittest.TestCase):
         self.assertIn("REQUIRED process [launchpad_node", text, text[-1500:])
 
     def test_3_ctrl_c_shuts_down_without_tracebacks(self) -> None:
+        # The race (a timer tick between rospy closing the publishers and the timer ending)
+        # showed in 2 of 3 manual runs before the fix: try twice, Ctrl-C to the group and to roslaunch.
+        # (one assertion over all attempts: rosunit's XML runner does not report subTest failures)
+        bad = []
+        for attempt, group in enumerate((True, False)):
+            rc, text = self._ctrl_c_once(group)
+            if rc is None or "closed topic" in text or "Traceback" in text:
+                bad.append(f"attempt {attempt} (exit {rc}):\n{text[-2000:]}")
+        rospy.loginfo("launch_errors: %d of 2 Ctrl-C runs unclean", len(bad))
+        self.assertEqual(bad, [], "\n\n".join(bad))
+
+    def _ctrl_c_once(self, group: bool) -> tuple[int | None, str]:
         link = f"/tmp/launch_errors_lp_{os.getpid()}"
         board = VirtualBoard(link)
         running = threading.Event()
@@ -105,7 +117,10 @@ class TestLaunchErrors(unittest.TestCase):
             for _ in range(10):                      # Ctrl-C while the loops are busy publishing
                 pub.publish(twist)
                 time.sleep(0.1)
-            os.killpg(proc.pid, signal.SIGINT)
+            if group:
+                os.killpg(proc.pid, signal.SIGINT)   # Ctrl-C in a terminal: the whole foreground group
+            else:
+                proc.send_signal(signal.SIGINT)      # roslaunch alone, which then stops its nodes
             rc, text = finish(proc, out, 30.0)
         finally:
             if proc.poll() is None:
@@ -113,9 +128,7 @@ class TestLaunchErrors(unittest.TestCase):
             running.clear()
             stepper.join(timeout=2)
             board.close()
-        self.assertIsNotNone(rc, "roslaunch did not end on SIGINT")
-        self.assertNotIn("closed topic", text, text[-3000:])
-        self.assertNotIn("Traceback", text, text[-3000:])
+        return rc, text
 
     def test_4_use_sim_time_without_clock_is_reported(self) -> None:
         rospy.set_param("/use_sim_time", True)
