@@ -8,6 +8,7 @@ from the board's own record of applied commands, not asserted by sleeping.
 from __future__ import annotations
 
 import math
+import re
 import threading
 import time
 import unittest
@@ -18,11 +19,13 @@ import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Int32
+from std_msgs.msg import Float32, Int32
 
 from chefbot_common.geometry import yaw_from_quaternion
 from chefbot_common.rostest_helpers import wait_for
 from chefbot_firmware.virtual_board import VirtualBoard
+
+CMD_LINE = re.compile(rb"\s*s\s+(-?\d+)\s+(-?\d+)")
 
 
 def odom_yaw(msg: Odometry) -> float:
@@ -32,14 +35,29 @@ def odom_yaw(msg: Odometry) -> float:
 
 
 class BoardThread(threading.Thread):
-    """Steps the virtual board in real time and records (t, left_cmd, right_cmd)."""
+    """Steps the virtual board in real time and records (t, left_cmd, right_cmd) and every
+    ``s <l> <r>`` line the driver sent, as (receive time, left, right)."""
 
     def __init__(self, link: str) -> None:
         super().__init__(daemon=True)
         self.lock = threading.Lock()
         self.board = VirtualBoard(link)
         self.history: deque = deque(maxlen=20000)
+        self.received: deque = deque(maxlen=20000)
+        self._rx = b""
         self.running = True
+
+    def _log_rx(self, now: float) -> None:
+        data = self.board.port.read()
+        if not data:
+            return
+        self.board.fw.feed(data)
+        self._rx += data
+        *lines, self._rx = re.split(rb"[\r\n]", self._rx)   # commands end in \r
+        for line in lines:
+            m = CMD_LINE.match(line)
+            if m:
+                self.received.append((now, int(m.group(1)), int(m.group(2))))
 
     def run(self) -> None:
         last = time.monotonic()
@@ -47,6 +65,7 @@ class BoardThread(threading.Thread):
             time.sleep(0.002)
             now = time.monotonic()
             with self.lock:
+                self._log_rx(now)
                 self.board.step(now - last)
                 self.history.append((now, self.board.fw.command(0), self.board.fw.command(1)))
             last = now
@@ -72,9 +91,12 @@ class TestRobotStandalone(unittest.TestCase):
         cls.odom: Odometry | None = None
         cls.diag: DiagnosticStatus | None = None
         cls.lwheel_count = 0
+        cls.diag_log: deque = deque(maxlen=2000)     # (receive time, level, message)
+        cls.pid_out: deque = deque(maxlen=20000)     # (receive time, left_wheel_speed)
         rospy.Subscriber("odom", Odometry, cls._on_odom, tcp_nodelay=True)
         rospy.Subscriber("diagnostics", DiagnosticArray, cls._on_diag)
         rospy.Subscriber("lwheel", Int32, cls._on_lwheel)
+        rospy.Subscriber("left_wheel_speed", Float32, cls._on_pid_out, tcp_nodelay=True)
         cls.pub = rospy.Publisher("cmd_vel", Twist, queue_size=1, tcp_nodelay=True)
 
     @classmethod
@@ -90,6 +112,11 @@ class TestRobotStandalone(unittest.TestCase):
         for st in msg.status:
             if st.name == "chefbot: launchpad":
                 cls.diag = st
+                cls.diag_log.append((time.monotonic(), st.level, st.message))
+
+    @classmethod
+    def _on_pid_out(cls, msg: Float32) -> None:
+        cls.pid_out.append((time.monotonic(), msg.data))
 
     @classmethod
     def _on_lwheel(cls, _msg: Int32) -> None:
@@ -189,6 +216,64 @@ class TestRobotStandalone(unittest.TestCase):
             p = self.odom.pose.pose.position
             return math.hypot(p.x - p0.x, p.y - p0.y)
         wait_for(lambda: travelled() > 0.1, 10, "driving again after the replug")
+
+    def test_7_silent_board_gets_no_drive_commands(self) -> None:
+        """The board stops talking (port open, no lines) while cmd_vel keeps coming at 10 Hz:
+        after silence_timeout no non-zero command may reach it, the PIDs must not wind up,
+        diagnostics stay ERROR; when it talks again, driving resumes."""
+        timeout = rospy.get_param("launchpad_node/silence_timeout")
+        wait_for(lambda: self.diag.level == DiagnosticStatus.OK, 20, "diagnostics OK before the silence")
+        twist = Twist()
+        twist.linear.x = 0.15
+        stop = threading.Event()
+
+        def publish() -> None:
+            while not stop.is_set():
+                self.pub.publish(twist)
+                stop.wait(0.1)
+        sender = threading.Thread(target=publish, daemon=True)
+        sender.start()
+        try:
+            wait_for(lambda: all(c > 0 for c in self.board.commands()), 10, "driving before the silence")
+            with self.board.lock:
+                self.board.board.silent = True
+                t_silent = time.monotonic()
+            silence = 5.0
+            wait_for(lambda: time.monotonic() > t_silent + silence, silence + 5, "5 s of silence")
+            with self.board.lock:
+                during = [(t, left, right) for t, left, right in self.board.received if t > t_silent]
+                self.board.board.silent = False
+                t_resume = time.monotonic()
+            diag_during = [(lvl, msg) for t, lvl, msg in self.diag_log if t_silent + timeout + 0.2 < t < t_resume]
+            pid_during = [v for t, v in self.pid_out if t_silent + timeout + 0.2 < t < t_resume]
+            self.assertGreater(len(during), 3 * silence, "the driver's commands were not recorded")
+            nonzero = [(round(t - t_silent, 3), left, right) for t, left, right in during if left or right]
+            last_nonzero = max((t for t, *_ in nonzero), default=0.0)
+            rospy.loginfo("robot_standalone: %d commands during %.1f s of silence, %d non-zero, last non-zero "
+                          "%.3f s after the silence began; peak %d", len(during), silence, len(nonzero),
+                          last_nonzero, max((max(abs(c[1]), abs(c[2])) for c in during), default=0))
+            self.assertLessEqual(last_nonzero, timeout + 0.3, f"non-zero commands during the silence: {nonzero}")
+            self.assertTrue(diag_during, "no diagnostics during the silence")
+            self.assertTrue(all(lvl == DiagnosticStatus.ERROR for lvl, _ in diag_during),
+                            f"diagnostics left ERROR during the silence: {sorted(set(diag_during))}")
+            self.assertTrue(pid_during and all(v == 0.0 for v in pid_during[len(pid_during) // 2:]),
+                            f"the wheel PID kept commanding without encoder feedback: {pid_during[-10:]}")
+            # it talks again: OK, and the drive resumes without a wound-up integrator
+            wait_for(lambda: self.diag.level == DiagnosticStatus.OK and self.diag_value("connected") == "True",
+                     20, "diagnostics OK after the board talks again")
+            wait_for(lambda: all(c > 0 for c in self.board.commands()), 10, "driving again after the silence")
+            t_moving = time.monotonic()
+            wait_for(lambda: time.monotonic() > t_moving + 0.5, 5, "half a second of driving")
+            with self.board.lock:
+                after = [max(abs(left), abs(right)) for t, left, right in self.board.received if t > t_resume]
+            # feed-forward 0.15/0.377*1023 = 407 plus the P term: a fresh PID starts near 470;
+            # a wound-up one (the integral of 5 s of error) starts at 800+
+            self.assertLess(max(after), 650, f"commands after the silence look wound up: peak {max(after)}")
+        finally:
+            stop.set()
+            sender.join(timeout=2)
+            with self.board.lock:
+                self.board.board.silent = False
 
 
 if __name__ == "__main__":

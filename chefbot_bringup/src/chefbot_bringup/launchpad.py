@@ -8,7 +8,10 @@
 * ``LaunchpadCore`` ties them together: it parses lines, keeps counts for
   diagnostics, tracks link health (silence timeout), and produces the single
   coherent ``s <l> <r>`` command per control cycle from the latest left/right
-  requests.
+  requests -- zero while the board is not heard from (no valid line since the
+  port was opened, or none for ``silence_timeout``): a board that stopped
+  talking gives no encoder feedback, so it must not be driven.
+* ``link_status`` turns the core's state into the diagnostic level and text.
 
 Time is passed in as float seconds (host monotonic or ROS time).
 """
@@ -21,6 +24,7 @@ from dataclasses import dataclass, field
 from chefbot_bringup import launchpad_protocol as proto
 
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+OK, WARN, ERROR = 0, 1, 2   # diagnostic_msgs/DiagnosticStatus levels
 
 
 def wrap_int32(v: int) -> int:
@@ -48,7 +52,8 @@ class LaunchpadConfig:
 
     def __post_init__(self) -> None:
         if not self.port:
-            raise ValueError("port must not be empty")
+            raise ValueError("port must not be empty: name the LaunchPad's serial device (e.g. "
+                             "/dev/chefbot_launchpad with the udev rule, /dev/ttyACM0, or the simulator's pty)")
         for name in ("baud", "silence_timeout", "control_rate", "command_timeout", "backoff_max",
                      "ticks_meter", "max_wheel_speed"):
             v = getattr(self, name)
@@ -246,6 +251,7 @@ class LinkStats:
     encoder_resets: int = 0
     encoder_jumps: int = 0
     commands_sent: int = 0
+    commands_zeroed: int = 0         # drive requests sent as 0 because the board was not heard from
     board_state: str | None = None   # last drive state in the `s` echo
     hello: tuple[str, ...] | None = None
 
@@ -277,6 +283,8 @@ class LaunchpadCore:
         self.crc_required = False
         self.board_clock = BoardClock()
         self._last_rx: float | None = None
+        self.heard = False               # a valid line arrived since the port was opened
+        self.clean_encoder_readings = 0  # encoder readings in a row without a jump/reset event
         self._cmd = [0.0, 0.0]
         self._cmd_t = [float("-inf"), float("-inf")]
 
@@ -287,17 +295,24 @@ class LaunchpadCore:
         self.encoders.retime(self.silence_timeout)
         self.crc_required = False  # the board on the other end may be a different firmware
         self.connected = True
+        self.heard = False
         self._last_rx = t
 
     def on_close(self) -> None:
         if self.connected:
             self.stats.reconnects += 1
         self.connected = False
+        self.heard = False
         self.assembler.reset()
 
     def silent(self, t: float) -> bool:
         """True when the open link has delivered no valid line for silence_timeout."""
         return self.connected and self._last_rx is not None and t - self._last_rx > self.silence_timeout
+
+    def alive(self, t: float) -> bool:
+        """True when the board is heard from: port open, a valid line since the open, and the
+        last one at most silence_timeout ago.  Only then may a non-zero command go out."""
+        return self.connected and self.heard and not self.silent(t)
 
     # ---- receive
     def on_bytes(self, data: bytes, t: float) -> list[tuple[object, object]]:
@@ -326,6 +341,7 @@ class LaunchpadCore:
             self.stats.lines_ok += 1
             self.stats.crc_lines += had_crc
             self._last_rx = t
+            self.heard = True
             extra = None
             if isinstance(msg, proto.Hello):
                 self.stats.hello = msg.fields
@@ -342,10 +358,13 @@ class LaunchpadCore:
                 board_t = self.board_clock.seconds
                 (pl, pr), ev = self.encoders.update(msg.left, msg.right, t if board_t is None else board_t)
                 if ev is not None:
+                    self.clean_encoder_readings = 0
                     if ev.kind == "reset":
                         self.stats.encoder_resets += 1
                     else:
                         self.stats.encoder_jumps += 1
+                else:
+                    self.clean_encoder_readings += 1
                 extra = (pl, pr, ev)
             out.append((msg, extra))
         return out
@@ -359,12 +378,41 @@ class LaunchpadCore:
 
     def command(self, t: float) -> bytes:
         """The one ``s`` line for this control cycle; a side not refreshed within
-        command_timeout is sent as 0 (its PID stopped publishing)."""
+        command_timeout is sent as 0 (its PID stopped publishing), and both are 0
+        while the board is not heard from (see :meth:`alive`)."""
         left = self._cmd[0] if t - self._cmd_t[0] <= self.command_timeout else 0.0
         right = self._cmd[1] if t - self._cmd_t[1] <= self.command_timeout else 0.0
+        if not self.alive(t):
+            if left or right:
+                self.stats.commands_zeroed += 1
+            left = right = 0.0
         self.stats.commands_sent += 1
         return proto.format_command(left, right, self.checksum_commands)
 
     def stop_command(self) -> bytes:
         self._cmd = [0.0, 0.0]
         return proto.format_command(0.0, 0.0, self.checksum_commands)
+
+
+def link_status(core: LaunchpadCore, t: float, port: str, last_error: str,
+                settle_readings: int = 10) -> tuple[int, str]:
+    """Diagnostic (level, message) of the link at time ``t`` (s).
+
+    * ERROR while the port is closed, and while it is open but the board is not heard
+      from after an error (a silent board stays ERROR across reopen attempts);
+    * WARN while the port is open before the board's first line ever, and for the
+      ``settle_readings`` encoder readings after an absorbed jump or reset;
+    * OK ("connected to <port>") otherwise.
+    """
+    if not core.connected:
+        return ERROR, last_error or f"{port} not open"
+    if not core.alive(t):
+        if not core.heard and last_error:
+            return ERROR, f"{last_error}; port reopened, no valid line yet (motors held at 0)"
+        if not core.heard:
+            return WARN, f"{port} open, waiting for the board's first valid line (motors held at 0)"
+        return ERROR, f"no valid line from {port} for {core.silence_timeout:.1f} s (motors held at 0)"
+    text = f"connected to {port}"
+    if (core.stats.encoder_jumps or core.stats.encoder_resets) and core.clean_encoder_readings < settle_readings:
+        return WARN, text + "; encoder counters jumped or reset (absorbed)"
+    return OK, text

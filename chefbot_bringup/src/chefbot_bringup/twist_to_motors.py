@@ -41,15 +41,18 @@ def wheel_speeds(v: float, w: float, base_width: float, max_speed: float) -> tup
     """Left/right wheel speeds (m/s) for body speed ``v`` (m/s) and yaw rate ``w`` (rad/s).
 
     If a wheel would exceed ``max_speed`` both are scaled by the same factor,
-    which keeps the ratio and so the radius of the turn.
+    which keeps the ratio and so the radius of the turn.  The arithmetic runs
+    on inputs scaled down to at most 1, so any finite command (up to
+    ±1.7e308) saturates instead of overflowing to inf and then NaN.
     """
-    half = 0.5 * w * base_width
-    left, right = v - half, v + half
+    scale = max(abs(v), abs(w), 1.0)
+    vn, half = v / scale, 0.5 * (w / scale) * base_width
+    left, right = vn - half, vn + half            # wheel speeds / scale, finite
     peak = max(abs(left), abs(right))
-    if peak > max_speed:
+    if peak > max_speed / scale:
         k = max_speed / peak
-        left, right = left * k, right * k
-    return left, right
+        return left * k, right * k
+    return left * scale, right * scale
 
 
 class TwistToMotors:

@@ -20,6 +20,11 @@ Differences from the book's ``pid_velocity`` and why:
   not integrate the whole idle time as the book's did.
 * Optional feed-forward ``target / max_speed * out_max`` so the PID only
   corrects the error instead of carrying the whole command.
+* Stale feedback: with no encoder reading for ``feedback_timeout`` (a board
+  that stopped talking, a dead driver) there is nothing to control against;
+  the controller commands 0 and keeps its integrator reset instead of
+  integrating the error of a wheel it cannot see (the book's wound up to
+  full power).  It resumes from a fresh start when readings come back.
 """
 from __future__ import annotations
 
@@ -47,6 +52,7 @@ class PidConfig:
     max_speed: float = 0.377       # ~max_speed, wheel speed at out_max (m/s), for feed-forward
     feed_forward: bool = True      # ~feed_forward, add target/max_speed*out_max to the output
     encoder_timeout: float = 0.2   # ~encoder_timeout, silence after which the stop bound applies (s)
+    feedback_timeout: float = 0.5  # ~feedback_timeout, no encoder reading this long: command 0, no integration (s)
     encoder: EncoderRange = field(default_factory=EncoderRange)
 
     def __post_init__(self) -> None:
@@ -55,7 +61,7 @@ class PidConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
 
-        for name in ("rate", "ticks_meter", "max_speed", "encoder_timeout"):
+        for name in ("rate", "ticks_meter", "max_speed", "encoder_timeout", "feedback_timeout"):
             positive(name)
         for name in ("kp", "ki", "kd", "vel_threshold"):
             v = getattr(self, name)
@@ -182,6 +188,8 @@ class WheelController:
     arriving the controller runs the PID; a target of exactly 0 commands 0
     (stop, not "hold zero speed", so the motor does not hunt around 0); after
     ``timeout_ticks`` loop ticks without a target it sends 0 once and idles.
+    Without an encoder reading for ``feedback_timeout`` s (none yet counts too)
+    it commands 0 with the PID reset (:attr:`feedback_stale` tells the node).
     """
 
     def __init__(self, cfg: PidConfig) -> None:
@@ -191,6 +199,8 @@ class WheelController:
         self.target = 0.0
         self._ticks_since_target = int(cfg.timeout_ticks)   # idle until a target arrives
         self._t_last: float | None = None
+        self._t_reading: float | None = None
+        self.feedback_stale = False
 
     @property
     def active(self) -> bool:
@@ -206,10 +216,13 @@ class WheelController:
 
     def add_reading(self, raw_ticks: int, t: float) -> None:
         self.estimator.add_reading(raw_ticks, t)
+        self._t_reading = t
 
     def tick(self, t: float) -> WheelTick:
         """Run one loop iteration at time ``t`` (s)."""
         vel = self.estimator.velocity(t)
+        # a reading "from the future" (time jumped back) counts as fresh; the estimator restarts
+        self.feedback_stale = self._t_reading is None or t - self._t_reading > self.cfg.feedback_timeout
         if not self.active:
             self._t_last = None
             return WheelTick(vel, None)
@@ -219,7 +232,7 @@ class WheelController:
             self.pid.reset()
             self._t_last = None
             return WheelTick(vel, 0.0)
-        if self.target == 0.0:
+        if self.target == 0.0 or self.feedback_stale:
             self.pid.reset()
             self._t_last = t
             return WheelTick(vel, 0.0)

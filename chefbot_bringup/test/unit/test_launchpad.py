@@ -5,9 +5,13 @@ import pytest
 
 from chefbot_bringup import launchpad_protocol as proto
 from chefbot_bringup.launchpad import (
+    ERROR,
+    OK,
+    WARN,
     EncoderContinuity,
     LaunchpadCore,
     LineAssembler,
+    link_status,
     wrap_int32,
 )
 
@@ -197,7 +201,10 @@ def test_core_silence_and_reconnect_counting() -> None:
 
 
 def test_core_single_coherent_command_with_stale_side_zeroed() -> None:
-    core = LaunchpadCore(max_ticks_per_s=11200, command_timeout=0.5, checksum_commands=False)
+    core = LaunchpadCore(max_ticks_per_s=11200, command_timeout=0.5, silence_timeout=10.0,
+                         checksum_commands=False)
+    core.on_open(0.0)
+    core.on_bytes(b"\ne\t0\t0\n", 0.0)
     core.set_left(300.0, 1.0)
     core.set_right(-200.0, 1.0)
     assert core.command(1.2) == b"s 300 -200\r"
@@ -205,6 +212,83 @@ def test_core_single_coherent_command_with_stale_side_zeroed() -> None:
     assert core.command(1.7) == b"s 310 0\r"
     assert core.command(5.0) == b"s 0 0\r"    # both stale
     assert core.stop_command() == b"s 0 0\r"
+
+
+def talking_core(t: float = 0.0) -> LaunchpadCore:
+    core = LaunchpadCore(max_ticks_per_s=11200, silence_timeout=1.0, command_timeout=0.5,
+                         checksum_commands=False)
+    core.on_open(t)
+    core.on_bytes(b"\ne\t0\t0\n", t)
+    return core
+
+
+def test_no_drive_command_to_a_board_that_stopped_talking() -> None:
+    core = talking_core()
+    t = 0.0
+    core.set_left(500.0, t)
+    core.set_right(500.0, t)
+    assert core.command(t) == b"s 500 500\r"
+    # the board goes silent at t = 0; the PIDs keep asking for 500 at 30 Hz
+    sent = []
+    while t < 5.0:
+        t += 1 / 30
+        core.set_left(500.0, t)
+        core.set_right(500.0, t)
+        sent.append((t, core.command(t)))
+        if core.silent(t):                    # the node closes and reopens the port
+            core.on_close()
+            core.on_open(t + 0.06)
+    assert all(cmd == b"s 0 0\r" for ts, cmd in sent if ts > 1.0)
+    assert all(cmd == b"s 500 500\r" for ts, cmd in sent if ts <= 1.0)
+    assert core.stats.commands_zeroed == sum(ts > 1.0 for ts, _ in sent)
+    # a valid line again: drive requests go through
+    core.on_bytes(b"\ne\t0\t0\n", t)
+    assert core.command(t) == b"s 500 500\r"
+
+
+def test_no_drive_command_after_open_before_the_first_valid_line() -> None:
+    core = LaunchpadCore(max_ticks_per_s=11200, checksum_commands=False)
+    core.set_left(200.0, 0.0)
+    assert core.command(0.0) == b"s 0 0\r"          # port not open
+    core.on_open(0.0)
+    assert core.command(0.1) == b"s 0 0\r"          # open, nothing heard
+    core.on_bytes(b"tial line\ngarbage\n", 0.1)     # a partial line and garbage are not "heard"
+    assert core.command(0.2) == b"s 0 0\r"
+    core.on_bytes(b"e\t0\t0\n", 0.2)
+    core.set_left(200.0, 0.2)
+    assert core.command(0.25) == b"s 200 0\r"
+
+
+def test_link_status_stays_error_while_the_board_is_silent() -> None:
+    core = LaunchpadCore(max_ticks_per_s=11200, silence_timeout=1.0)
+    assert link_status(core, 0.0, "/dev/x", "")[0] == ERROR
+    core.on_open(0.0)
+    assert link_status(core, 0.0, "/dev/x", "") == (WARN, "/dev/x open, waiting for the board's first valid "
+                                                         "line (motors held at 0)")
+    core.on_bytes(b"\ne\t0\t0\n", 0.1)
+    assert link_status(core, 0.2, "/dev/x", "") == (OK, "connected to /dev/x")
+    level, text = link_status(core, 1.2, "/dev/x", "")     # silent, not yet closed
+    assert level == ERROR and "no valid line" in text
+    core.on_close()
+    err = "no valid line from /dev/x for 1.0 s; reconnecting"
+    assert link_status(core, 1.2, "/dev/x", err) == (ERROR, err)
+    core.on_open(1.3)                                        # reopened, still silent: not OK
+    level, text = link_status(core, 1.3, "/dev/x", err)
+    assert level == ERROR and text.startswith(err)
+    core.on_bytes(b"\ne\t0\t0\n", 1.5)                     # it speaks again
+    assert link_status(core, 1.5, "/dev/x", err) == (OK, "connected to /dev/x")
+
+
+def test_encoder_warning_clears_once_readings_are_consistent_again() -> None:
+    core = talking_core()
+    core.on_bytes(b"e\t100\t100\n", 0.05)
+    core.on_bytes(b"v\t1\n" + b"e\t0\t0\n", 0.1)             # hello + counters from 0: a reboot
+    assert core.stats.encoder_resets == 1
+    level, text = link_status(core, 0.1, "/dev/x", "")
+    assert level == WARN and text.startswith("connected to /dev/x") and "absorbed" in text
+    for i in range(1, 11):
+        core.on_bytes(b"e\t%d\t%d\n" % (i, i), 0.1 + i * 0.03)
+    assert link_status(core, 0.5, "/dev/x", "") == (OK, "connected to /dev/x")
 
 
 def test_core_rejects_bad_timeouts() -> None:

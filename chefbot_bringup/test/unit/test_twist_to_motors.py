@@ -22,6 +22,35 @@ def test_clamp_keeps_turn_ratio():
     assert left / right == pytest.approx(0.15 / 0.45)
 
 
+BIG = 1.7e308
+
+
+@pytest.mark.parametrize("v,w", [(BIG, BIG), (-BIG, BIG), (BIG, -BIG), (-BIG, -BIG), (BIG, 0.0), (0.0, BIG),
+                                 (1e-300, BIG), (BIG, 1e-300), (5e307, 1e308), (1e200, 3.0)])
+def test_huge_commands_saturate_instead_of_overflowing(v, w):
+    for max_speed in (0.377, 10.0):
+        left, right = wheel_speeds(v, w, 0.30, max_speed)
+        assert math.isfinite(left) and math.isfinite(right), (v, w, left, right)
+        assert max(abs(left), abs(right)) == pytest.approx(max_speed)
+        # the direction of the command survives: forward/backward and turn sense
+        if w == 0.0:
+            assert left == right and math.copysign(1, left) == math.copysign(1, v)
+        elif abs(w) * 0.15 > abs(v):
+            assert math.copysign(1, right - left) == math.copysign(1, w)
+
+
+def test_huge_command_through_the_core_every_tick_finite_and_limited():
+    cfg = TwistToMotorsConfig()
+    limiter = SonarLimiter(SonarLimitConfig())
+    limiter.add_range(math.inf, 0.02, 4.0, 0.0)
+    t2m = TwistToMotors(cfg, limiter)
+    assert t2m.set_twist(BIG, BIG)
+    for i in range(cfg.timeout_ticks):
+        left, right = t2m.tick(i / cfg.rate)
+        assert math.isfinite(left) and math.isfinite(right)
+        assert max(abs(left), abs(right)) <= cfg.max_wheel_speed + 1e-12
+
+
 def test_nan_and_inf_ignored():
     t2m = TwistToMotors(TwistToMotorsConfig())
     assert t2m.set_twist(0.1, 0.0)

@@ -150,13 +150,45 @@ def test_integral_does_not_jump_after_idle():
     run_controller(ctrl, None, 5, t, p0=p)
     # Resume after 100 s idle: the first output is as from a fresh start.
     fresh = WheelController(cfg)
-    fresh.add_reading(0, 99.0)
-    ctrl.add_reading(int(p), 99.0)
+    fresh.add_reading(0, 99.9)
+    ctrl.add_reading(int(p), 99.9)
     ctrl.set_target(0.2)
     fresh.set_target(0.2)
     a = ctrl.tick(100.0).motor_cmd
     b = fresh.tick(100.0).motor_cmd
     assert a == pytest.approx(b)
+
+
+def test_stale_feedback_commands_zero_without_winding_up():
+    cfg = PidConfig(feedback_timeout=0.5)
+    ctrl = WheelController(cfg)
+    _outs, t, p = run_controller(ctrl, 0.2, 30, 0.0, v_true=0.2)
+    assert not ctrl.feedback_stale
+    driving = ctrl.tick(t).motor_cmd
+    assert driving > 0
+    # the encoder goes silent; targets keep coming for 5 s
+    outs = []
+    for _ in range(150):
+        t += 1 / 30
+        ctrl.set_target(0.2)
+        outs.append((t, ctrl.tick(t)))
+    late = [o.motor_cmd for ts, o in outs if ts > t - 5.0 + 0.5 + 1e-6]
+    assert late and all(c == 0.0 for c in late)
+    assert ctrl.feedback_stale and ctrl.pid.integral == 0.0
+    # before the timeout it kept driving (one late reading is no reason to stop)
+    assert outs[0][1].motor_cmd > 0
+    # readings again: it starts from a fresh PID (no integral of the 5 s of error)
+    ctrl.add_reading(int(p), t)
+    ctrl.set_target(0.2)
+    resumed = ctrl.tick(t + 1 / 30).motor_cmd
+    assert not ctrl.feedback_stale and resumed > 0
+    assert 0.0 <= ctrl.pid.integral <= cfg.ki * 0.2 / cfg.rate + 1e-9    # one step's worth, at most
+
+
+def test_no_reading_yet_means_no_drive():
+    ctrl = WheelController(PidConfig())
+    ctrl.set_target(0.3)
+    assert ctrl.tick(1.0).motor_cmd == 0.0 and ctrl.feedback_stale
 
 
 def test_nan_target_ignored():
@@ -166,7 +198,7 @@ def test_nan_target_ignored():
 
 
 @pytest.mark.parametrize("field,value", [("rate", 0.0), ("timeout_ticks", 0), ("rolling_pts", 1.5),
-                                         ("ticks_meter", -1.0)])
+                                         ("ticks_meter", -1.0), ("feedback_timeout", 0.0)])
 def test_bad_config(field, value):
     with pytest.raises(ValueError, match=field):
         PidConfig(**{field: value})

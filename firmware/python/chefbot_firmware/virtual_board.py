@@ -125,7 +125,9 @@ class VirtualBoard:
     ``step(dt)`` moves the board's clock by dt seconds: bytes from the driver go
     into the firmware, the motor model turns the wheels (unless ``model_wheels``
     is False and the caller feeds ``turn_wheel``), encoder edges go back into the
-    firmware's decoder, and the firmware's output goes to the driver.
+    firmware's decoder, and the firmware's output goes to the driver -- unless
+    ``silent`` is set: then the port stays open and commands still arrive, but
+    every line the board writes is dropped (a board that stopped talking).
     """
 
     def __init__(self, link: str | os.PathLike | None = None, model_wheels: bool = True,
@@ -136,6 +138,7 @@ class VirtualBoard:
         self.model_wheels = model_wheels
         self.motors = (MotorModel(), MotorModel())
         self._edge_rest = [0.0, 0.0]     # fractional edges carried between steps
+        self.silent = False              # True: the board runs and listens but sends nothing (a hung TX)
         self.fw.set_ultrasonic_cm(None)
         self.fw.set_battery_volts(12.4)
         self.fw.set_imu_quaternion(0.0, 0.0, 0.0, 1.0)
@@ -165,7 +168,7 @@ class VirtualBoard:
                 self.turn_wheel(side, self.motors[side].step(self.fw.wheel_duty(side), dt))
         self.fw.advance(max(1, round(dt * 1e6)))
         out = self.fw.read_tx()
-        if out:
+        if out and not self.silent:
             self.port.write(out)
 
     def reconnect(self, link: str | os.PathLike | None = None) -> None:
