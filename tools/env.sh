@@ -13,4 +13,12 @@ export VIRTUAL_ENV="$_chefbot_root/.venv"
 source "$_chefbot_root/devel/setup.bash"
 export PATH="$_chefbot_root/.venv/bin:$PATH"
 export ROS_PYTHON_VERSION=3
+# Loopback only unless asked: with ROS_HOSTNAME/ROS_IP on a loopback name every
+# rospy node and the master bind their XML-RPC and TCPROS servers to 127.0.0.1
+# instead of 0.0.0.0 (ROS 1 has no authentication: anyone who reaches a port can
+# publish cmd_vel or shut a node down). To reach the robot from another machine
+# set CHEFBOT_ROS_IP to its LAN address before sourcing this file (README.md,
+# "Security and multi-machine use").
+export ROS_IP="${CHEFBOT_ROS_IP:-127.0.0.1}"
+export ROS_HOSTNAME="${CHEFBOT_ROS_IP:-localhost}"
 unset _chefbot_root
