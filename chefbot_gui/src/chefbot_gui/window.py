@@ -114,6 +114,10 @@ class RobotGuiWindow(QWidget):
             self.removeButton.setEnabled(self.state.remove_enabled)
 
     # ------------------------------------------------------------------ ROS bridge → presenter
+    @pyqtSlot(str, bool)
+    def on_master(self, uri: str, reachable: bool) -> None:
+        self.presenter.on_master(uri, reachable)
+
     @pyqtSlot(bool)
     def on_server(self, connected: bool) -> None:
         self.presenter.on_server(connected)

@@ -94,6 +94,19 @@ def test_tables_sorted_numerically_with_labels() -> None:
     assert table_label("bar_counter") == "Bar counter"
 
 
+def test_labels_stay_unique_for_lookalike_keys() -> None:
+    poses = {"home": Pose(0, 0), "table_1": Pose(1, 0), "table_01": Pose(2, 0), "Table_2": Pose(3, 0),
+             "table 2": Pose(4, 0), "table_2": Pose(5, 0), "Home": Pose(6, 0)}
+    _, tables = make_destinations(poses)
+    labels = {t.key: t.label for t in tables}
+    assert labels["table_1"] == "Table 1" and labels["table_01"] == "Table 01"
+    assert labels["table_2"] == "Table 2"
+    # "Table_2" and "table 2" would read "Table 2", "Home" like home: the key is added
+    assert labels["Table_2"] == "Table 2 (Table_2)" and labels["table 2"] == "Table 2 (table 2)"
+    assert labels["Home"] == "Home (Home)"
+    assert len({*labels.values(), "Home"}) == len(labels) + 1
+
+
 def test_missing_home_or_tables_rejected() -> None:
     with pytest.raises(ValueError, match="home"):
         make_destinations({"table_1": Pose(0, 0)})
@@ -116,6 +129,35 @@ def test_bad_parameters_rejected(robot: FakeRobot, clock: Clock) -> None:
 
 
 # ---------------------------------------------------------------- connection
+def test_no_master_then_master_then_connecting(robot: FakeRobot, clock: Clock) -> None:
+    pres = DeliveryPresenter(POSES, robot, clock, connect_timeout_s=5.0)
+    uri = "http://127.0.0.1:1"
+    pres.on_master(uri, False)
+    pres.select("table_1")
+    clock.t += 60.0  # the server time-out does not run while there is no master
+    pres.tick()
+    st = pres.state()
+    assert st.status == f"no ROS master at {uri} — retrying"
+    assert not (st.go_enabled or st.home_enabled or st.cancel_enabled or st.served_enabled)
+    pres.go()
+    assert robot.goals == []
+    pres.on_master(uri, True)
+    assert pres.state().status == "connecting…"
+    clock.t += 5.1
+    pres.tick()
+    assert pres.state().status == "robot not connected"
+    pres.on_server(True)
+    assert pres.state().go_enabled
+
+
+def test_master_lost_while_driving_stops_and_requeues(p: DeliveryPresenter, robot: FakeRobot) -> None:
+    queue(p, "table_3")
+    p.on_master("http://localhost:11311", False)
+    st = p.state()
+    assert st.status.startswith("no ROS master at http://localhost:11311")
+    assert p.queue == ["table_3"] and p.phase == Phase.STOPPED and not st.go_enabled
+
+
 def test_connecting_then_not_connected_then_ready(robot: FakeRobot, clock: Clock) -> None:
     pres = DeliveryPresenter(POSES, robot, clock, connect_timeout_s=5.0)
     states: list[ViewState] = []
