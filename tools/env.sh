@@ -21,4 +21,14 @@ export ROS_PYTHON_VERSION=3
 # "Security and multi-machine use").
 export ROS_IP="${CHEFBOT_ROS_IP:-127.0.0.1}"
 export ROS_HOSTNAME="${CHEFBOT_ROS_IP:-localhost}"
+# roscpp's XML-RPC server ignores both and binds 0.0.0.0: a small LD_PRELOAD shim
+# (tools/loopback_bind.c, built by setup) turns wildcard binds into loopback ones.
+_chefbot_lb="$_chefbot_root/build/lib/libchefbot_loopback_bind.so"
+if [ -z "${CHEFBOT_ROS_IP:-}" ] && [ -f "$_chefbot_lb" ]; then
+    case ":${LD_PRELOAD:-}:" in
+        *":$_chefbot_lb:"*) ;;
+        *) export LD_PRELOAD="$_chefbot_lb${LD_PRELOAD:+:$LD_PRELOAD}" ;;
+    esac
+fi
+unset _chefbot_lb
 unset _chefbot_root

@@ -86,4 +86,12 @@ fi
 if [ -f firmware/Makefile ]; then
     make -s -C firmware lib || { echo "[setup] ERROR: building the firmware host library failed" >&2; exit 1; }
 fi
+# ---------------------------------------------------------------- 5. loopback bind shim
+# tools/env.sh preloads it so C++ nodes' XML-RPC servers bind 127.0.0.1 (see the source).
+LB_SO="$ROOT/build/lib/libchefbot_loopback_bind.so"
+if [ ! -f "$LB_SO" ] || [ tools/loopback_bind.c -nt "$LB_SO" ]; then
+    mkdir -p "$ROOT/build/lib"
+    gcc -O2 -Wall -Wextra -Werror -shared -fPIC -o "$LB_SO" tools/loopback_bind.c -ldl \
+        || { echo "[setup] ERROR: building tools/loopback_bind.c failed" >&2; exit 1; }
+fi
 say "ready — 'source tools/env.sh' for manual roslaunch/rosrun"
