@@ -50,7 +50,8 @@ req_hash=$(sha256sum requirements.txt | cut -c1-16)
 if [ "$(cat "$STAMPS/requirements" 2>/dev/null || true)" != "$req_hash" ]; then
     say "installing pinned PyPI requirements"
     # (grep drops a harmless warning some machines' pip config prints per package)
-    "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r requirements.txt 2>&1 \
+    # --require-hashes: every file must match a sha256 in requirements.txt (tools/pin_hashes.py)
+    "$VENV/bin/python" -m pip install -q --disable-pip-version-check --require-hashes -r requirements.txt 2>&1 \
         | { grep -v "^WARNING: Location 'file:" || true; }
     [ "${PIPESTATUS[0]}" -eq 0 ] || { echo "[setup] ERROR: pip install failed" >&2; exit 1; }
     echo "$req_hash" > "$STAMPS/requirements"
