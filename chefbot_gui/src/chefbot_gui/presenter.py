@@ -163,7 +163,15 @@ def make_destinations(poses: Mapping[str, PoseLike]) -> tuple[Destination, list[
     return Destination(HOME, "Home", poses[HOME]), tables
 
 
-def _fmt_eta(seconds: float) -> str:
+def fmt_metres(m: float) -> str:
+    """A distance for staff: ``3.2``; %g beyond 10 km so a huge coordinate stays short (``1e+300``)."""
+    return f"{m:.1f}" if abs(m) < 1e4 else f"{m:.3g}"
+
+
+def fmt_eta(seconds: float) -> str:
+    """An ETA for staff: ``~12 s``, ``~4 min``; %g when absurdly long."""
+    if seconds >= 6e5:  # more than a week: %g, not a 300-digit number
+        return f"~{seconds / 60:.3g} min"
     if seconds >= 90:
         return f"~{round(seconds / 60)} min"
     return f"~{round(seconds)} s"
@@ -537,7 +545,7 @@ class DeliveryPresenter:
         if self.phase == Phase.DRIVING:
             where = "returning home" if self.current == HOME else f"driving to {label}"
             if remaining is not None and eta is not None:
-                where += f" ({remaining:.1f} m, {_fmt_eta(eta)})"
+                where += f" ({fmt_metres(remaining)} m, {fmt_eta(eta)})"
             return where, (f"then: {queued}" if n else "press Cancel to stop the robot")
         if self.phase == Phase.CANCELLING:
             return "cancelling…", "waiting for the robot to stop"

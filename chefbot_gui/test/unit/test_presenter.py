@@ -18,6 +18,8 @@ from chefbot_gui.presenter import (
     Phase,
     Pose,
     ViewState,
+    fmt_eta,
+    fmt_metres,
     make_destinations,
     table_label,
 )
@@ -416,3 +418,17 @@ def test_listener_called_only_on_change(p: DeliveryPresenter) -> None:
     assert len(states) == 1
     p.select("table_1")
     assert len(states) == 2 and states[-1].selected == "table_1"
+
+
+def test_huge_coordinates_format_short() -> None:
+    """A 1e300 table coordinate used to print as a 300-digit number in the status line."""
+    assert fmt_metres(3.25) == "3.2" and fmt_metres(1e300) == "1e+300"
+    assert fmt_eta(12.4) == "~12 s" and fmt_eta(600) == "~10 min" and fmt_eta(1e300 / 0.3) == "~5.56e+298 min"
+    far = dict(POSES, table_9=Pose(1e300, 0.0))
+    robot = FakeRobot()
+    pres = DeliveryPresenter(far, robot, Clock(), speed_mps=0.3)
+    pres.on_server(True)
+    pres.on_robot_pose(Pose(0.0, 0.0))
+    queue(pres, "table_9")
+    st = pres.state()
+    assert st.status == "driving to Table 9 (1e+300 m, ~5.56e+298 min)"

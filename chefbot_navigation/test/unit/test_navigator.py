@@ -170,3 +170,12 @@ def test_oscillation_runs_recoveries_in_order_then_aborts() -> None:
     assert not layers.obstacles.any(), "clear_costmaps recovery did not clear"
     # rotate recovery turned the robot about once around; back-off moved it backwards
     assert pose.distance(Pose2D(-2.0, -0.5)) > 0.1
+
+
+def test_huge_goal_coordinate_reads_short_in_the_reason() -> None:
+    """A 1e300 coordinate used to print as a 300-digit number in the abort text."""
+    nav, _ = make_nav()
+    nav.set_goal(Goal(1e300, 0.0, 0.0), 0.0)
+    res, _, _ = run(nav, Pose2D(-2.0, 0.0, 0.0))
+    assert res.outcome == "aborted" and "off the map" in res.text
+    assert "1e+300" in res.text and len(res.text) < 120, res.text
