@@ -29,6 +29,9 @@ if [ -z "${CHEFBOT_ROS_IP:-}" ] && [ -f "$_chefbot_lb" ]; then
         *":$_chefbot_lb:"*) ;;
         *) export LD_PRELOAD="$_chefbot_lb${LD_PRELOAD:+:$LD_PRELOAD}" ;;
     esac
+elif [ -n "${LD_PRELOAD:-}" ]; then  # opened up after an earlier loopback-only source
+    LD_PRELOAD=$(printf '%s' ":$LD_PRELOAD:" | sed "s#:$_chefbot_lb:#:#g; s#^:##; s#:\$##")
+    if [ -n "$LD_PRELOAD" ]; then export LD_PRELOAD; else unset LD_PRELOAD; fi
 fi
 unset _chefbot_lb
 unset _chefbot_root
