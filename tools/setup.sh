@@ -50,7 +50,8 @@ req_hash=$(sha256sum requirements.txt | cut -c1-16)
 if [ "$(cat "$STAMPS/requirements" 2>/dev/null || true)" != "$req_hash" ]; then
     say "installing pinned PyPI requirements"
     # (grep drops a harmless warning some machines' pip config prints per package)
-    "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r requirements.txt 2>&1 \
+    # --require-hashes: every file must match a sha256 in requirements.txt (tools/pin_hashes.py)
+    "$VENV/bin/python" -m pip install -q --disable-pip-version-check --require-hashes -r requirements.txt 2>&1 \
         | { grep -v "^WARNING: Location 'file:" || true; }
     [ "${PIPESTATUS[0]}" -eq 0 ] || { echo "[setup] ERROR: pip install failed" >&2; exit 1; }
     echo "$req_hash" > "$STAMPS/requirements"
@@ -85,5 +86,13 @@ fi
 # The simulator and the driver tests load it with ctypes (incremental, quiet).
 if [ -f firmware/Makefile ]; then
     make -s -C firmware lib || { echo "[setup] ERROR: building the firmware host library failed" >&2; exit 1; }
+fi
+# ---------------------------------------------------------------- 5. loopback bind shim
+# tools/env.sh preloads it so C++ nodes' XML-RPC servers bind 127.0.0.1 (see the source).
+LB_SO="$ROOT/build/lib/libchefbot_loopback_bind.so"
+if [ ! -f "$LB_SO" ] || [ tools/loopback_bind.c -nt "$LB_SO" ]; then
+    mkdir -p "$ROOT/build/lib"
+    gcc -O2 -Wall -Wextra -Werror -shared -fPIC -o "$LB_SO" tools/loopback_bind.c -ldl \
+        || { echo "[setup] ERROR: building tools/loopback_bind.c failed" >&2; exit 1; }
 fi
 say "ready — 'source tools/env.sh' for manual roslaunch/rosrun"

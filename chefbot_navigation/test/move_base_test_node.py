@@ -15,11 +15,12 @@ import unittest
 import actionlib
 import rospy
 import rostest
-from actionlib_msgs.msg import GoalStatus, GoalStatusArray
+from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
 from geometry_msgs.msg import PoseStamped, Quaternion
-from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Path
 from nav_msgs.srv import GetPlan, GetPlanRequest
+from rosgraph_msgs.msg import Log
 from std_srvs.srv import Empty
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -220,6 +221,38 @@ class MoveBaseTest(unittest.TestCase):
         t_after = self.robot.now
         wait_for(lambda: rospy.wait_for_message("move_base/status", GoalStatusArray, 30.0).header.stamp.to_sec()
                    > t_after, 60.0, "fresh move_base/status")
+
+    def test_q_cancel_that_overtakes_its_goal_logs_no_error(self) -> None:
+        """Goal storms: a cancel reaching the server before its goal (separate topics) left actionlib a
+        goal-less tracker, and the next cancel touching it logged "Attempt to get a goal id on an
+        uninitialized ServerGoalHandle"."""
+        statuses: dict[str, int] = {}
+        logs: list[str] = []
+        subs = [rospy.Subscriber("move_base/status", GoalStatusArray,
+                                 lambda m: statuses.update({s.goal_id.id: s.status for s in m.status_list})),
+                rospy.Subscriber("/rosout", Log, lambda m: logs.append(m.msg) if m.name == "/move_base" else None)]
+        cancel = rospy.Publisher("move_base/cancel", GoalID, queue_size=10)
+        goal_pub = rospy.Publisher("move_base/goal", MoveBaseActionGoal, queue_size=10)
+        try:
+            wait_until(lambda: cancel.get_num_connections() > 0 and goal_pub.get_num_connections() > 0
+                       and subs[1].get_num_connections() > 0, 30.0, "move_base topics connected")
+            gid = f"overtaken_{os.getpid()}"
+            cancel.publish(GoalID(id=gid))  # stamp 0
+            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLING, 30.0, "cancel stored")
+            goal_pub.publish(MoveBaseActionGoal(goal_id=GoalID(id=gid), goal=make_goal(1.0, 0.0)))
+            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLED, 30.0, "goal recalled")
+            cancel.publish(GoalID(id=gid))                       # the same cancel again
+            cancel.publish(GoalID(stamp=rospy.Time(0, 1)))       # everything stamped before 1 ns: only it
+            # the service logs after the cancels were handled (one rosout stream, in order)
+            rospy.wait_for_service("move_base/clear_costmaps", 30.0)
+            rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
+            wait_until(lambda: any("costmaps cleared" in m for m in logs), 30.0, "move_base log after the cancels")
+            self.assertFalse([m for m in logs if "uninitialized" in m], logs)
+        finally:
+            for sub in subs:
+                sub.unregister()
+            cancel.unregister()
+            goal_pub.unregister()
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],

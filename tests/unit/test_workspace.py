@@ -5,6 +5,7 @@ These are also the placeholder tests of packages that hold no code yet.
 from __future__ import annotations
 
 import importlib
+import re
 import subprocess
 from pathlib import Path
 
@@ -58,12 +59,15 @@ def test_python_module_importable_without_rospy(module: str, tmp_path: Path) -> 
     assert out.returncode == 0, out.stderr
 
 
-def test_requirements_are_pinned() -> None:
-    lines = [ln.split("#")[0].strip() for ln in (ROOT / "requirements.txt").read_text().splitlines()]
-    reqs = [ln for ln in lines if ln]
+def test_requirements_are_pinned_with_hashes() -> None:
+    text = (ROOT / "requirements.txt").read_text().replace("\\\n", " ")  # join pip's continuations
+    reqs = [ln.split("#")[0].split() for ln in text.splitlines() if ln.split("#")[0].strip()]
     assert reqs
-    for r in reqs:
-        assert "==" in r, f"requirement not pinned exactly: {r}"
+    for pin, *opts in reqs:
+        assert "==" in pin, f"requirement not pinned exactly: {pin}"
+        assert opts and all(re.fullmatch(r"--hash=sha256:[0-9a-f]{64}", o) for o in opts), \
+            f"{pin}: needs --hash=sha256:... (python tools/pin_hashes.py)"
+    assert "--require-hashes" in (ROOT / "tools" / "setup.sh").read_text()
 
 
 def test_venv_python_sees_rospy_and_pypi() -> None:

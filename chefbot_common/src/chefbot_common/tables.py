@@ -40,9 +40,11 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as e:
         raise TablesError(f"{path}: cannot read tables file: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise TablesError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from e
     except yaml.YAMLError as e:
         raise TablesError(f"{path}: invalid YAML: {e}") from e
     if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):

@@ -29,6 +29,14 @@ def test_missing_file(tmp_path: Path) -> None:
         load_tables(tmp_path / "absent.yaml")
 
 
+def test_not_utf8_names_the_file(tmp_path: Path) -> None:
+    p = tmp_path / "t.yaml"
+    p.write_bytes("poses: {home: {x: 0, y: 0}}  # caf\xe9\n".encode("latin-1"))
+    with pytest.raises(TablesError, match="not UTF-8 text") as err:
+        load_tables(p)
+    assert str(p) in str(err.value)
+
+
 @pytest.mark.parametrize("text, words", [
     ("poses: {table_1: {x: 1, y: 2}}", ["missing the 'home'"]),
     ("poses: {home: {x: 1}}", ["poses.home", "missing field 'y'"]),

@@ -1,21 +1,27 @@
 """Glue between the ROS bridge, the presenter and the window; parameters; screenshots.
 
-No rospy here: the node script reads the ROS parameters with the workspace's
-shared reader (``chefbot_common.params.read_config``, which checks types and
-names the parameter in its errors) into :class:`GuiParams`, whose own checks
-cover the values.
+No rospy here (the master probe speaks XML-RPC itself, so the window can run
+before ``rospy.init_node``, which blocks until a master answers): the node
+script reads the ROS parameters with the workspace's shared reader
+(``chefbot_common.params.read_config``, which checks types and names the
+parameter in its errors) into :class:`GuiParams`, whose own checks cover the values.
 """
 from __future__ import annotations
 
+import http.client
 import math
-from collections.abc import Callable
+import threading
+import xmlrpc.client
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import Any
 
-from PyQt5.QtCore import QObject, Qt, QTimer
+import yaml
+from PyQt5.QtCore import QObject, Qt, QTimer, pyqtSignal
 from PyQt5.QtWidgets import QWidget
 
-from chefbot_gui.presenter import OrderMode
+from chefbot_gui.presenter import Destination, OrderMode
 
 ORDER_NAMES = {"in_order": OrderMode.FIFO, "nearest_first": OrderMode.NEAREST}
 
@@ -99,3 +105,86 @@ def schedule_screenshot(widget: QWidget, path: str | Path, delay_s: float,
     timer.timeout.connect(lambda: done(save_screenshot(widget, path)))
     timer.start(max(0, round(delay_s * 1000)))
     return timer
+
+
+def command_line_params(argv: Sequence[str]) -> Callable[[str, Any], Any]:
+    """A ``get(name, default)`` over the ``_name:=value`` arguments (YAML-typed, like rospy).
+
+    Used before a ROS master is reachable: then the private parameters can only
+    come from the command line (``rosrun chefbot_gui robot_gui _tables_file:=…``).
+    """
+    params: dict[str, Any] = {}
+    for arg in argv:
+        src, sep, value = arg.partition(":=")
+        if sep and src.startswith("_") and not src.startswith("__") and len(src) > 1:
+            try:
+                params["~" + src[1:]] = yaml.safe_load(value)
+            except yaml.YAMLError as e:
+                raise ValueError(f"command-line parameter {src}: invalid value {value!r}: {e}") from e
+    return lambda name, default: params.get(name, default)
+
+
+class _TimeoutTransport(xmlrpc.client.Transport):
+    def __init__(self, timeout_s: float) -> None:
+        super().__init__()
+        self._timeout_s = timeout_s
+
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        conn = super().make_connection(host)
+        conn.timeout = self._timeout_s
+        return conn
+
+
+def master_reachable(uri: str, timeout_s: float = 0.5) -> bool:
+    """Does a ROS master answer ``getPid`` at ``uri`` within ``timeout_s`` seconds?"""
+    try:
+        code, _msg, _pid = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout_s)).getPid("/robot_gui")
+    except (OSError, xmlrpc.client.Error, ValueError, TypeError):
+        return False
+    return code == 1
+
+
+class MasterWatcher(QObject):
+    """Probes the ROS master from a thread; ``changed(uri, reachable)`` on every change.
+
+    The first report comes after the first probe.  ``period_s``: time between
+    probes (s); ``timeout_s``: how long one probe may take (s).
+    """
+
+    changed = pyqtSignal(str, bool)
+
+    def __init__(self, uri: str, period_s: float = 1.0, timeout_s: float = 0.5,
+                 parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.uri = uri
+        self._period_s = period_s
+        self._timeout_s = timeout_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="chefbot_gui_master", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=self._period_s + self._timeout_s + 1.0)
+
+    def _run(self) -> None:
+        last: bool | None = None
+        while not self._stop.is_set():
+            ok = master_reachable(self.uri, self._timeout_s)
+            if ok != last and not self._stop.is_set():
+                last = ok
+                self.changed.emit(self.uri, ok)
+            self._stop.wait(self._period_s)
+
+
+class OfflineRobot:
+    """The presenter's robot until the ROS bridge exists: goals go nowhere (buttons are disabled)."""
+
+    def send_goal(self, goal_id: int, dest: Destination) -> None:
+        """Nothing to send to without a ROS master."""
+
+    def cancel_goal(self) -> None:
+        """Nothing to cancel without a ROS master."""

@@ -7,7 +7,7 @@ the node, a fake in the unit tests).  Time comes from an injected clock
 (seconds, monotonic) so waiting and time-outs are testable without sleeping.
 
 States shown to staff (``ViewState.status``):
-``connecting…``, ``robot not connected``, ``ready``,
+``no ROS master at http://… — retrying``, ``connecting…``, ``robot not connected``, ``ready``,
 ``driving to Table 4 (3.2 m, ~12 s)``, ``returning home (…)``,
 ``arrived at Table 4 — waiting for Served``, ``arrived home — ready``,
 ``cancelling…``, ``cancelled``, ``failed: <reason from the server>``.
@@ -127,9 +127,13 @@ class ViewState:
 
 
 def table_label(key: str) -> str:
-    """Staff-facing name of a destination key: ``table_4`` → ``Table 4``, ``home`` → ``Home``."""
+    """Staff-facing name of a destination key: ``table_4`` → ``Table 4``, ``home`` → ``Home``.
+
+    Only the canonical spelling gets the short form: ``table_04`` stays
+    ``Table 04`` so it cannot be confused with ``table_4``.
+    """
     m = re.fullmatch(r"table_(\d+)", key)
-    if m:
+    if m and m.group(1) == str(int(m.group(1))):
         return f"Table {int(m.group(1))}"
     return key.replace("_", " ").strip().capitalize()
 
@@ -140,19 +144,34 @@ def _sort_key(key: str) -> tuple[int, int, str]:
 
 
 def make_destinations(poses: Mapping[str, PoseLike]) -> tuple[Destination, list[Destination]]:
-    """Split loaded poses into ``home`` and the tables, tables numerically sorted.
+    """Split loaded poses into ``home`` and the tables, tables numerically sorted, labels unique.
 
     Raises ``ValueError`` when ``home`` is missing or there is no table.
     """
     if HOME not in poses:
         raise ValueError("the tables file has no 'home' pose")
-    tables = [Destination(k, table_label(k), poses[k]) for k in sorted(poses, key=_sort_key) if k != HOME]
-    if not tables:
+    keys = [k for k in sorted(poses, key=_sort_key) if k != HOME]
+    if not keys:
         raise ValueError("the tables file has no table poses")
+    labels = [table_label(k) for k in keys]
+    taken = [*labels, "Home"]
+    # keys that read the same for staff (``table 4``, ``Table_4`` next to ``table_4``) also show
+    # the key; the canonical spelling of a label (``table_4`` for "Table 4") keeps the short form
+    labels = [f"{lab} ({k})" if taken.count(lab) > 1 and k != lab.lower().replace(" ", "_") else lab
+              for k, lab in zip(keys, labels, strict=True)]
+    tables = [Destination(k, lab, poses[k]) for k, lab in zip(keys, labels, strict=True)]
     return Destination(HOME, "Home", poses[HOME]), tables
 
 
-def _fmt_eta(seconds: float) -> str:
+def fmt_metres(m: float) -> str:
+    """A distance for staff: ``3.2``; %g beyond 10 km so a huge coordinate stays short (``1e+300``)."""
+    return f"{m:.1f}" if abs(m) < 1e4 else f"{m:.3g}"
+
+
+def fmt_eta(seconds: float) -> str:
+    """An ETA for staff: ``~12 s``, ``~4 min``; %g when absurdly long."""
+    if seconds >= 6e5:  # more than a week: %g, not a 300-digit number
+        return f"~{seconds / 60:.3g} min"
     if seconds >= 90:
         return f"~{round(seconds / 60)} min"
     return f"~{round(seconds)} s"
@@ -180,12 +199,14 @@ class DeliveryPresenter:
         self._by_key = {d.key: d for d in [self.home, *self.tables]}
         self._robot = robot
         self._clock = clock
+        self._connect_timeout = connect_timeout_s
         self._connect_deadline = clock() + connect_timeout_s
         self._speed = speed_mps
         self._diag_timeout = diagnostics_timeout_s
         self._listeners: list[Callable[[ViewState], None]] = []
 
         self.connected: bool | None = None
+        self.master_missing: str | None = None  # ROS master URI while it cannot be reached
         self.phase = Phase.IDLE
         self.order_mode = order_mode
         self.wait_time_s = float(wait_time_s)
@@ -216,6 +237,10 @@ class DeliveryPresenter:
         self._last_state = st
         for listener in list(self._listeners):
             listener(st)
+
+    def attach_robot(self, robot: RobotPort) -> None:
+        """Use ``robot`` from now on (the ROS bridge exists only once the master is reachable)."""
+        self._robot = robot
 
     def destination(self, key: str) -> Destination:
         """The destination named ``key`` (``KeyError`` if unknown)."""
@@ -287,6 +312,23 @@ class DeliveryPresenter:
         self._changed()
 
     # ------------------------------------------------------------------ robot events
+    def on_master(self, uri: str, reachable: bool) -> None:
+        """The ROS master at ``uri`` cannot be reached (False) or was just reached (True).
+
+        While it is missing every robot action is disabled; once it answers the
+        usual "connecting…" time-out for the navigation server starts.
+        """
+        missing = None if reachable else uri
+        if missing == self.master_missing:
+            return
+        self.master_missing = missing
+        if reachable:
+            self.connected = None
+            self._connect_deadline = self._clock() + self._connect_timeout
+        else:
+            self.on_server(False)
+        self._changed()
+
     def on_server(self, connected: bool) -> None:
         """The navigation action server appeared (True) or went away (False)."""
         if connected == self.connected:
@@ -340,7 +382,7 @@ class DeliveryPresenter:
     def tick(self) -> None:
         """Advance time: connection time-out, wait at table, stale diagnostics."""
         now = self._clock()
-        if self.connected is None and now >= self._connect_deadline:
+        if self.connected is None and self.master_missing is None and now >= self._connect_deadline:
             self.connected = False
         if self.phase == Phase.WAITING and self._wait_deadline is not None and now >= self._wait_deadline:
             self._leave_table()
@@ -489,6 +531,10 @@ class DeliveryPresenter:
     def _texts(self, remaining: float | None, eta: float | None) -> tuple[str, str]:
         n = len(self.queue)
         queued = f"{n} table{'s' if n != 1 else ''} queued"
+        if self.master_missing is not None:
+            extra = f" ({queued})" if n else ""
+            return (f"no ROS master at {self.master_missing} — retrying",
+                    f"start roscore (or the robot's launch file); the GUI connects by itself{extra}")
         if self.connected is None:
             return "connecting…", "waiting for the navigation server (move_base)"
         if not self.connected:
@@ -499,7 +545,7 @@ class DeliveryPresenter:
         if self.phase == Phase.DRIVING:
             where = "returning home" if self.current == HOME else f"driving to {label}"
             if remaining is not None and eta is not None:
-                where += f" ({remaining:.1f} m, {_fmt_eta(eta)})"
+                where += f" ({fmt_metres(remaining)} m, {fmt_eta(eta)})"
             return where, (f"then: {queued}" if n else "press Cancel to stop the robot")
         if self.phase == Phase.CANCELLING:
             return "cancelling…", "waiting for the robot to stop"

@@ -158,7 +158,7 @@ class RosBridge(QObject):
         if self._closed:
             return
         goal = goal_message(dest, self.p.map_frame, rospy.Time.now())
-        rospy.loginfo("chefbot_gui: goal %d: %s at (%.2f, %.2f, %.2f rad)", goal_id, dest.key,
+        rospy.loginfo("chefbot_gui: goal %d: %s at (%.4g, %.4g, %.3g rad)", goal_id, dest.key,
                       dest.pose.x, dest.pose.y, dest.pose.yaw)
         try:
             self._client.send_goal(goal, done_cb=partial(self._on_done, goal_id),

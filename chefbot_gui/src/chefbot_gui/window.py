@@ -16,7 +16,7 @@ from PyQt5.QtWidgets import QListView, QListWidgetItem, QWidget
 
 from chefbot_common.grid import GridInfo
 from chefbot_gui.map_view import Marker
-from chefbot_gui.presenter import DeliveryPresenter, OrderMode, Outcome, Phase, Pose, ViewState
+from chefbot_gui.presenter import DeliveryPresenter, OrderMode, Outcome, Phase, Pose, ViewState, fmt_eta, fmt_metres
 
 TICK_MS = 200  # presenter clock: wait countdown, connection time-out, stale diagnostics
 _STATUS_COLOURS = {
@@ -114,6 +114,10 @@ class RobotGuiWindow(QWidget):
             self.removeButton.setEnabled(self.state.remove_enabled)
 
     # ------------------------------------------------------------------ ROS bridge → presenter
+    @pyqtSlot(str, bool)
+    def on_master(self, uri: str, reachable: bool) -> None:
+        self.presenter.on_master(uri, reachable)
+
     @pyqtSlot(bool)
     def on_server(self, connected: bool) -> None:
         self.presenter.on_server(connected)
@@ -162,8 +166,8 @@ class RobotGuiWindow(QWidget):
 
             if st.progress is not None:
                 self.routeProgress.setValue(round(st.progress * 100))
-                self.routeProgress.setFormat(f"{st.remaining_m:.1f} m to go" + (
-                    f", ~{round(st.eta_s)} s" if st.eta_s is not None and math.isfinite(st.eta_s) else ""))
+                self.routeProgress.setFormat(f"{fmt_metres(st.remaining_m)} m to go" + (
+                    f", {fmt_eta(st.eta_s)}" if st.eta_s is not None and math.isfinite(st.eta_s) else ""))
             else:
                 self.routeProgress.setValue(0)
                 self.routeProgress.setFormat("no route")

@@ -18,6 +18,8 @@ from chefbot_gui.presenter import (
     Phase,
     Pose,
     ViewState,
+    fmt_eta,
+    fmt_metres,
     make_destinations,
     table_label,
 )
@@ -94,6 +96,19 @@ def test_tables_sorted_numerically_with_labels() -> None:
     assert table_label("bar_counter") == "Bar counter"
 
 
+def test_labels_stay_unique_for_lookalike_keys() -> None:
+    poses = {"home": Pose(0, 0), "table_1": Pose(1, 0), "table_01": Pose(2, 0), "Table_2": Pose(3, 0),
+             "table 2": Pose(4, 0), "table_2": Pose(5, 0), "Home": Pose(6, 0)}
+    _, tables = make_destinations(poses)
+    labels = {t.key: t.label for t in tables}
+    assert labels["table_1"] == "Table 1" and labels["table_01"] == "Table 01"
+    assert labels["table_2"] == "Table 2"
+    # "Table_2" and "table 2" would read "Table 2", "Home" like home: the key is added
+    assert labels["Table_2"] == "Table 2 (Table_2)" and labels["table 2"] == "Table 2 (table 2)"
+    assert labels["Home"] == "Home (Home)"
+    assert len({*labels.values(), "Home"}) == len(labels) + 1
+
+
 def test_missing_home_or_tables_rejected() -> None:
     with pytest.raises(ValueError, match="home"):
         make_destinations({"table_1": Pose(0, 0)})
@@ -116,6 +131,35 @@ def test_bad_parameters_rejected(robot: FakeRobot, clock: Clock) -> None:
 
 
 # ---------------------------------------------------------------- connection
+def test_no_master_then_master_then_connecting(robot: FakeRobot, clock: Clock) -> None:
+    pres = DeliveryPresenter(POSES, robot, clock, connect_timeout_s=5.0)
+    uri = "http://127.0.0.1:1"
+    pres.on_master(uri, False)
+    pres.select("table_1")
+    clock.t += 60.0  # the server time-out does not run while there is no master
+    pres.tick()
+    st = pres.state()
+    assert st.status == f"no ROS master at {uri} — retrying"
+    assert not (st.go_enabled or st.home_enabled or st.cancel_enabled or st.served_enabled)
+    pres.go()
+    assert robot.goals == []
+    pres.on_master(uri, True)
+    assert pres.state().status == "connecting…"
+    clock.t += 5.1
+    pres.tick()
+    assert pres.state().status == "robot not connected"
+    pres.on_server(True)
+    assert pres.state().go_enabled
+
+
+def test_master_lost_while_driving_stops_and_requeues(p: DeliveryPresenter, robot: FakeRobot) -> None:
+    queue(p, "table_3")
+    p.on_master("http://localhost:11311", False)
+    st = p.state()
+    assert st.status.startswith("no ROS master at http://localhost:11311")
+    assert p.queue == ["table_3"] and p.phase == Phase.STOPPED and not st.go_enabled
+
+
 def test_connecting_then_not_connected_then_ready(robot: FakeRobot, clock: Clock) -> None:
     pres = DeliveryPresenter(POSES, robot, clock, connect_timeout_s=5.0)
     states: list[ViewState] = []
@@ -374,3 +418,17 @@ def test_listener_called_only_on_change(p: DeliveryPresenter) -> None:
     assert len(states) == 1
     p.select("table_1")
     assert len(states) == 2 and states[-1].selected == "table_1"
+
+
+def test_huge_coordinates_format_short() -> None:
+    """A 1e300 table coordinate used to print as a 300-digit number in the status line."""
+    assert fmt_metres(3.25) == "3.2" and fmt_metres(1e300) == "1e+300"
+    assert fmt_eta(12.4) == "~12 s" and fmt_eta(600) == "~10 min" and fmt_eta(1e300 / 0.3) == "~5.56e+298 min"
+    far = dict(POSES, table_9=Pose(1e300, 0.0))
+    robot = FakeRobot()
+    pres = DeliveryPresenter(far, robot, Clock(), speed_mps=0.3)
+    pres.on_server(True)
+    pres.on_robot_pose(Pose(0.0, 0.0))
+    queue(pres, "table_9")
+    st = pres.state()
+    assert st.status == "driving to Table 9 (1e+300 m, ~5.56e+298 min)"

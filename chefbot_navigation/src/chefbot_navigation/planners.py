@@ -117,11 +117,11 @@ def _check_endpoints(costmap: Costmap, start: tuple[float, float], goal: tuple[f
     sr, sc = (int(v) for v in info.world_to_cell(*start))
     gr, gc = (int(v) for v in info.world_to_cell(*goal))
     if not info.inside(np.array(sr), np.array(sc)):
-        raise PlanningError("start_off_map", f"robot position ({start[0]:.2f}, {start[1]:.2f}) is off the map")
+        raise PlanningError("start_off_map", f"robot position ({start[0]:.4g}, {start[1]:.4g}) is off the map")
     if not info.inside(np.array(gr), np.array(gc)):
-        raise PlanningError("goal_off_map", f"goal ({goal[0]:.2f}, {goal[1]:.2f}) is off the map")
+        raise PlanningError("goal_off_map", f"goal ({goal[0]:.4g}, {goal[1]:.4g}) is off the map")
     g = int(costmap.cost[gr, gc])
-    where = f"goal ({goal[0]:.2f}, {goal[1]:.2f})"
+    where = f"goal ({goal[0]:.4g}, {goal[1]:.4g})"
     if g == LETHAL:
         raise PlanningError("goal_in_obstacle", f"{where} is inside an obstacle")
     if g == INSCRIBED:
@@ -231,8 +231,8 @@ class DijkstraPlanner:
         costs, s, g = self._prepare(costmap, start, goal)
         cells = self._grid_path(costs, s, g)
         if cells is None:
-            raise PlanningError("no_path", f"no path from ({start[0]:.2f}, {start[1]:.2f}) to goal "
-                                f"({goal[0]:.2f}, {goal[1]:.2f}): it is unreachable")
+            raise PlanningError("no_path", f"no path from ({start[0]:.4g}, {start[1]:.4g}) to goal "
+                                f"({goal[0]:.4g}, {goal[1]:.4g}): it is unreachable")
         total = path_cost(cells, costs)
         kept = smooth_path(cells, costs) if self.params.smooth else cells
         x, y = costmap.info.cell_to_world(kept[:, 0], kept[:, 1])

@@ -209,3 +209,12 @@ def test_parse_goal_and_faults() -> None:
     assert "last never" in scan_fault(10.0, None, 1.0) and "2.0 s ago" in scan_fault(10.0, 8.0, 1.0)
     assert pose_age_fault(0.4, 0.5, "map", "base") == ""
     assert "0.60 s old" in pose_age_fault(0.6, 0.5, "map", "base")
+
+
+def test_huge_goal_coordinate_reads_short_in_the_reason() -> None:
+    """A 1e300 coordinate used to print as a 300-digit number in the abort text."""
+    nav, _ = make_nav()
+    nav.set_goal(Goal(1e300, 0.0, 0.0), 0.0)
+    res, _, _ = run(nav, Pose2D(-2.0, 0.0, 0.0))
+    assert res.outcome == "aborted" and "off the map" in res.text
+    assert "1e+300" in res.text and len(res.text) < 120, res.text
