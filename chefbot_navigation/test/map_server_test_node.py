@@ -35,10 +35,11 @@ def wait_for_message(topic: str, cls, timeout: float):
     return got[0] if got else None
 
 
-def run_map_server(yaml_path: str) -> subprocess.CompletedProcess:
+def run_map_server(yaml_path: str, *extra: str) -> subprocess.CompletedProcess:
     """Run a second map_server under another name on a bad file; it must exit by itself."""
     return subprocess.run(["rosrun", PKG, "map_server", yaml_path, "__name:=bad_map_server",
-                           "map:=bad_map", "map_metadata:=bad_map_metadata", "static_map:=bad_static_map"],
+                           "map:=bad_map", "map_metadata:=bad_map_metadata", "static_map:=bad_static_map",
+                           *extra],
                           capture_output=True, text=True, timeout=60, check=False)
 
 
@@ -94,6 +95,26 @@ class MapServerTest(unittest.TestCase):
         self.assertNotEqual(out.returncode, 0)
         self.assertIn("/nonexistent/chefbot/room.pgm", out.stderr)
         self.assertIn("'image'", out.stderr)
+
+    def test_map_over_max_map_cells_exits_nonzero_without_traceback(self) -> None:
+        path = os.path.join(self.fixtures, "room.yaml")
+        out = run_map_server(path, "_max_map_cells:=10")
+        self.assertNotEqual(out.returncode, 0)
+        self.assertIn(path, out.stderr)
+        self.assertIn("max_map_cells", out.stderr)
+        self.assertNotIn("Traceback", out.stderr)
+
+    def test_non_utf8_yaml_exits_nonzero_without_traceback(self) -> None:
+        with tempfile.NamedTemporaryFile("wb", suffix=".yaml", delete=False) as f:
+            f.write("image: carte_\xe9t\xe9.pgm\n".encode("latin-1"))
+        try:
+            out = run_map_server(f.name)
+            self.assertNotEqual(out.returncode, 0)
+            self.assertIn(f.name, out.stderr)
+            self.assertIn("not UTF-8", out.stderr)
+            self.assertNotIn("Traceback", out.stderr)
+        finally:
+            os.unlink(f.name)
 
     def test_corrupt_yaml_exits_nonzero(self) -> None:
         with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:

@@ -25,22 +25,47 @@ from typing import Any
 import cv2
 import numpy as np
 import yaml
+from PIL import Image
 
 from chefbot_common.grid import GridInfo, OccupancyMap
 
 MODES = ("trinary", "scale", "raw")
 REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+# Largest map accepted by default: 4000 x 4000 cells (200 m x 200 m at 0.05 m/cell,
+# a hotel floor). A 20000 x 20000 map took 25 s and 4.8 GB to load, and every
+# costmap copy of it gigabytes more: refuse such maps with a clear message instead.
+MAX_MAP_CELLS = 4000 * 4000
+# Sane resolutions (m/cell): finer than 1 mm or coarser than 100 m is a typo.
+RESOLUTION_RANGE = (1e-3, 100.0)
 
 
 class MapError(ValueError):
     """A map file cannot be used; the message names the file and the field."""
 
 
-def _number(path: Path, meta: dict[str, Any], field: str) -> float:
-    value = meta[field]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise MapError(f"{path}: field '{field}' must be a finite number, got {value!r}")
+def _as_float(value: Any) -> float | None:
+    """``value`` as a finite float, or None.
+
+    YAML 1.1 (PyYAML) reads ``1e-300`` (no dot) as a string, where map_server's
+    yaml-cpp reads a number: accept numeric strings too.
+    """
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            return None
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
     return float(value)
+
+
+def _number(path: Path, meta: dict[str, Any], field: str) -> float:
+    value = _as_float(meta[field])
+    if value is None:
+        raise MapError(f"{path}: field '{field}' must be a finite number, got {meta[field]!r}")
+    return value
 
 
 def read_map_yaml(path: str | os.PathLike) -> dict[str, Any]:
@@ -50,9 +75,14 @@ def read_map_yaml(path: str | os.PathLike) -> dict[str, Any]:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
+    except IsADirectoryError as exc:
+        raise MapError(f"{path}: is a directory, not a map YAML file") from exc
     except OSError as exc:
         raise MapError(f"{path}: cannot read map YAML ({exc.strerror or exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise MapError(f"{path}: not a text file (byte {exc.start} is not UTF-8); "
+                       "a map YAML is UTF-8 text") from exc
     try:
         meta = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -71,14 +101,15 @@ def read_map_yaml(path: str | os.PathLike) -> dict[str, Any]:
         image_path = path.parent / image_path
     out["image"] = image_path
     out["resolution"] = _number(path, meta, "resolution")
-    if out["resolution"] <= 0.0:
-        raise MapError(f"{path}: field 'resolution' must be > 0 m/cell, got {meta['resolution']!r}")
+    lo, hi = RESOLUTION_RANGE
+    if not lo <= out["resolution"] <= hi:
+        raise MapError(f"{path}: field 'resolution' must be between {lo:g} and {hi:g} m/cell, "
+                       f"got {out['resolution']:g}")
     origin = meta["origin"]
-    if (not isinstance(origin, (list, tuple)) or len(origin) != 3
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                       for v in origin)):
+    values = [_as_float(v) for v in origin] if isinstance(origin, (list, tuple)) else []
+    if len(values) != 3 or any(v is None for v in values):
         raise MapError(f"{path}: field 'origin' must be [x, y, yaw] (3 finite numbers), got {origin!r}")
-    out["origin"] = [float(v) for v in origin]
+    out["origin"] = values
     negate = meta["negate"]
     if negate not in (0, 1) or (isinstance(negate, float)):
         raise MapError(f"{path}: field 'negate' must be 0 or 1, got {negate!r}")
@@ -133,17 +164,55 @@ def image_to_occupancy(image: np.ndarray, negate: bool, occupied_thresh: float, 
     return np.ascontiguousarray(out[::-1])
 
 
-def load_map(yaml_path: str | os.PathLike) -> OccupancyMap:
+def image_size(path: str | os.PathLike) -> tuple[int, int]:
+    """(width, height) in pixels from an image file's header, without decoding the pixels.
+
+    Raises :class:`MapError` when the header cannot be read.
+    """
+    # Only the header is read, so Pillow's decompression-bomb guard (which would
+    # refuse to even report a huge size) is lifted here; the caller checks the size.
+    guard, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+    try:
+        with Image.open(path) as im:
+            return im.size
+    except (OSError, ValueError, SyntaxError) as exc:
+        raise MapError(f"{path}: not a readable image ({exc})") from exc
+    finally:
+        Image.MAX_IMAGE_PIXELS = guard
+
+
+def check_map_size(width: int, height: int, max_cells: int, where: str) -> None:
+    """Raise :class:`MapError` when a ``width`` x ``height`` grid exceeds ``max_cells`` or is empty."""
+    if width < 1 or height < 1:
+        raise MapError(f"{where}: map is empty ({width} x {height} cells)")
+    if width * height > max_cells:
+        raise MapError(f"{where}: map is {width} x {height} = {width * height:,} cells, more than the "
+                       f"maximum of {max_cells:,} cells (param max_map_cells); crop it or use a coarser "
+                       "resolution")
+
+
+def load_map(yaml_path: str | os.PathLike, max_cells: int = MAX_MAP_CELLS) -> OccupancyMap:
     """Load a map_server YAML + image into an :class:`OccupancyMap`.
 
     Raises :class:`MapError` naming the file and field for every kind of bad
-    input (missing/unreadable/corrupt image, bad or missing YAML fields).
+    input (missing/unreadable/corrupt image, bad or missing YAML fields, an
+    image larger than ``max_cells`` cells, checked from its header before decoding).
     """
     meta = read_map_yaml(yaml_path)
     image_path: Path = meta["image"]
+    if image_path.is_dir():
+        raise MapError(f"{yaml_path}: field 'image': {image_path} is a directory, not an image file")
     if not image_path.is_file():
         raise MapError(f"{yaml_path}: field 'image': file {image_path} does not exist")
-    image = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
+    try:
+        width, height = image_size(image_path)
+    except MapError as exc:
+        raise MapError(f"{yaml_path}: field 'image': {exc}") from exc
+    check_map_size(width, height, max_cells, f"{yaml_path}: field 'image': {image_path}")
+    try:
+        image = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        raise MapError(f"{yaml_path}: field 'image': {image_path} cannot be decoded ({exc.err})") from exc
     if image is None or image.size == 0:
         raise MapError(f"{yaml_path}: field 'image': {image_path} is not a readable image (corrupt or "
                        "unsupported format)")
