@@ -49,6 +49,7 @@ class LaunchpadConfig:
     battery_full_voltage: float = 12.7   # V, 100 %
     ultrasonic_frame_id: str = "ultrasonic_link"
     imu_frame_id: str = "gyro_link"
+    event_driven: bool = True           # write a wheel command when it arrives (False: only on the control timer)
 
     def __post_init__(self) -> None:
         if not self.port:
@@ -80,6 +81,7 @@ LAUNCHPAD_PARAMS = {
     "max_wheel_speed": "~max_wheel_speed", "checksum_commands": "~checksum_commands",
     "battery_empty_voltage": "~battery_empty_voltage", "battery_full_voltage": "~battery_full_voltage",
     "ultrasonic_frame_id": "~ultrasonic_frame_id", "imu_frame_id": "~imu_frame_id",
+    "event_driven": "~event_driven",
 }
 
 
