@@ -212,18 +212,22 @@ def depth_to_scan(depth: np.ndarray, cam: Intrinsics, cfg: ScanConfig) -> Scan:
     # 1. smallest in-range finite value: squared ranges s, reduce rows, then columns into bins.
     #    Only s < lo2 needs masking: a value above hi2 can only win where nothing is in range,
     #    and `found` below tells those apart; NaN (no data, 0 * inf) is skipped by fmin.
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):
         z = band * 0.001 if band.dtype == np.uint16 else band.astype(np.float64)   # uint16 0 -> range 0
         s = np.multiply(z, plan.tan)
         np.multiply(s, s, out=s)
         np.multiply(z, z, out=z)
         s += z                                    # x^2 + z^2, the reference's expression
+    # the +/-inf rule below needs an infinite range somewhere: an inf depth, or (float64 only)
+    # a finite depth so large that its range overflows
+    may_have_inf = band.dtype != np.uint16 and (
+        bool(np.isinf(band).any()) or (band.dtype == np.float64 and bool(np.isinf(s).any())))
     if lo2 > 0.0:
         np.copyto(s, np.inf, where=s < lo2)
     best2 = np.fmin.reduceat(np.fmin.reduce(s, axis=0)[plan.order], plan.starts)
     found = best2 <= hi2
     ranges[plan.occupied] = np.sqrt(np.where(found, best2, np.nan))
-    if band.dtype == np.uint16 or found.all():   # uint16 has no +/-inf
+    if found.all() or not may_have_inf:   # bins without an in-range value stay NaN
         return Scan(angle_min, angle_max, inc, ranges)
     best = np.full(w, np.inf)
     best[plan.occupied[found]] = ranges[plan.occupied[found]]

@@ -180,6 +180,14 @@ def test_identical_to_reference_when_whole_columns_are_invalid():
     depth[:, 300:320] = 0.2              # too close
     depth[235:240, 400:420] = np.inf     # inf rows above finite ones: the finite value still wins
     assert same(depth_to_scan(depth, CAM, CFG).ranges, depth_to_scan_reference(depth, CAM, CFG).ranges)
+    nan_only = wall(3.0)
+    nan_only[:, :300] = np.nan           # no data, no inf: the fast path alone
+    assert same(depth_to_scan(nan_only, CAM, CFG).ranges, depth_to_scan_reference(nan_only, CAM, CFG).ranges)
+    huge = wall(3.0).astype(np.float64)
+    huge[237, :100] = 1e200              # finite depth whose range overflows to +inf
+    huge[:, 100:200] = np.nan
+    huge[238, 150] = 1e200
+    assert same(depth_to_scan(huge, CAM, CFG).ranges, depth_to_scan_reference(huge, CAM, CFG).ranges)
     u16 = np.full((H, W), 3000, np.uint16)
     u16[:, :300] = 0
     assert same(depth_to_scan(u16, CAM, CFG).ranges, depth_to_scan_reference(u16, CAM, CFG).ranges)
