@@ -16,6 +16,7 @@ import actionlib
 import rospy
 import rostest
 from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Path
@@ -234,25 +235,44 @@ class MoveBaseTest(unittest.TestCase):
         cancel = rospy.Publisher("move_base/cancel", GoalID, queue_size=10)
         goal_pub = rospy.Publisher("move_base/goal", MoveBaseActionGoal, queue_size=10)
         try:
-            wait_until(lambda: cancel.get_num_connections() > 0 and goal_pub.get_num_connections() > 0
+            wait_for(lambda: cancel.get_num_connections() > 0 and goal_pub.get_num_connections() > 0
                        and subs[1].get_num_connections() > 0, 30.0, "move_base topics connected")
             gid = f"overtaken_{os.getpid()}"
             cancel.publish(GoalID(id=gid))  # stamp 0
-            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLING, 30.0, "cancel stored")
+            wait_for(lambda: statuses.get(gid) == GoalStatus.RECALLING, 30.0, "cancel stored")
             goal_pub.publish(MoveBaseActionGoal(goal_id=GoalID(id=gid), goal=make_goal(1.0, 0.0)))
-            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLED, 30.0, "goal recalled")
+            wait_for(lambda: statuses.get(gid) == GoalStatus.RECALLED, 30.0, "goal recalled")
             cancel.publish(GoalID(id=gid))                       # the same cancel again
             cancel.publish(GoalID(stamp=rospy.Time(0, 1)))       # everything stamped before 1 ns: only it
             # the service logs after the cancels were handled (one rosout stream, in order)
             rospy.wait_for_service("move_base/clear_costmaps", 30.0)
             rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
-            wait_until(lambda: any("costmaps cleared" in m for m in logs), 30.0, "move_base log after the cancels")
+            wait_for(lambda: any("costmaps cleared" in m for m in logs), 30.0, "move_base log after the cancels")
             self.assertFalse([m for m in logs if "uninitialized" in m], logs)
         finally:
             for sub in subs:
                 sub.unregister()
             cancel.unregister()
             goal_pub.unregister()
+
+    def test_r_map_above_max_map_cells_refused_goal_aborted_with_reason(self) -> None:
+        """issue 10 item 3: a map bigger than ~max_map_cells is refused with a clear error; the node keeps
+        running, answers goals with the reason and reports it on diagnostics."""
+        diags: list[DiagnosticArray] = []
+        sub = rospy.Subscriber("tiny_map_limit/diagnostics", DiagnosticArray, diags.append)
+        client = actionlib.SimpleActionClient("tiny_map_limit/move_base", MoveBaseAction)
+        try:
+            self.assertTrue(client.wait_for_server(rospy.Duration(60.0)), "no tiny_map_limit/move_base server")
+            client.send_goal(make_goal(1.0, 0.0))
+            self.assertTrue(client.wait_for_result(rospy.Duration(WALL_TIMEOUT)), "no result")
+            self.assertEqual(client.get_state(), GoalStatus.ABORTED)
+            text = client.get_goal_status_text()
+            self.assertIn("map refused", text)
+            self.assertIn("more than the maximum of 1,000 cells (param max_map_cells)", text)
+            wait_for(lambda: any(st.level == DiagnosticStatus.ERROR and "map refused" in st.message
+                                 for d in diags for st in d.status), 60.0, "map refusal on diagnostics")
+        finally:
+            sub.unregister()
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
+from chefbot_common.map_io import MAX_MAP_CELLS
 from chefbot_common.params import read_config
 from chefbot_navigation.controller import CONTROLLERS, ControllerParams, LocalController, make_controller
 from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap
@@ -86,8 +87,11 @@ class NodeParams:
     zero_quaternion_policy: str = "identity"   # identity | ignore_yaw | reject
     global_publish_frequency: float = 1.0   # Hz, global costmap topic
     local_publish_frequency: float = 2.0    # Hz, local costmap topic
+    max_map_cells: int = MAX_MAP_CELLS      # cells; a bigger `map` message is refused (4000 x 4000)
 
     def __post_init__(self) -> None:
+        if not self.max_map_cells >= 1:
+            raise ValueError(f"max_map_cells must be >= 1, got {self.max_map_cells}")
         if not self.controller_frequency >= 1.0:
             raise ValueError(f"controller_frequency must be >= 1 Hz, got {self.controller_frequency}")
         if not self.transform_tolerance > 0.0:
