@@ -301,7 +301,13 @@ class RegulatedPurePursuit:
             # rotating in place first keeps the robot on the path instead of swinging wide
             if abs(self.v) > 1e-3:
                 return self._emit(0.0, self.w, t, dt, "following", "stopping to turn")
-            return self._rotate_to(alpha, t, dt, "following", pose, costmap)
+            cmd = self._rotate_to(alpha, t, dt, "following", pose, costmap)
+            if cmd.status == "blocked" and abs(alpha) > 0.5 * math.pi:
+                # no room to turn round (a dead-end aisle): back out along the path instead
+                back = self._back_out(pose, -lx, -ly, t, dt, costmap)
+                if back is not None:
+                    return back
+            return cmd
         l2 = lx * lx + ly * ly
         curvature = 2.0 * ly / l2 if l2 > 1e-9 else 0.0
         v = p.max_vel_x
@@ -338,6 +344,23 @@ class RegulatedPurePursuit:
             if cmd is not None:
                 return cmd
         return self._emit(0.0, 0.0, t, dt, "blocked", "obstacle ahead on the path", emergency=True, where=where)
+
+    def _back_out(self, pose: Pose2D, lx: float, ly: float, t: float, dt: float,
+                  costmap: Costmap) -> Command | None:
+        """Reverse slowly towards the mirrored lookahead point (``lx``, ``ly`` m in the robot frame, i.e.
+        the real target is behind), or None if that collides or the target is not roughly behind."""
+        p = self.p
+        alpha = math.atan2(ly, lx)
+        if abs(alpha) > 0.6:
+            return None
+        l2 = lx * lx + ly * ly
+        curvature = 2.0 * ly / l2 if l2 > 1e-9 else 0.0
+        v = -min(0.1, p.max_vel_x)
+        w = min(max(-v * curvature, -p.max_vel_theta), p.max_vel_theta)
+        if self.arc_collides(pose, _limit(v, self.v, p.acc_lim_x, dt), _limit(w, self.w, p.acc_lim_theta, dt),
+                             costmap):
+            return None
+        return self._emit(v, w, t, dt, "following", "backing out of a narrow passage")
 
     def _squeeze(self, pose: Pose2D, t: float, dt: float, costmap: Costmap) -> Command | None:
         """A slow command that tracks the path closely (lookahead 0.12 m), or None if that collides too."""
