@@ -87,7 +87,7 @@ class NodeParams:
     sensor_timeout: float = 1.0             # s without scan -> stop (0 disables the check)
     base_global_planner: str = "hierarchical"
     base_local_planner: str = "regulated_pure_pursuit"
-    zero_quaternion_policy: str = "identity"   # identity | ignore_yaw | reject
+    zero_quaternion_policy: str = "identity"   # all-zero (unset) quaternion: identity | ignore_yaw | reject
     global_publish_frequency: float = 1.0   # Hz, global costmap topic
     local_publish_frequency: float = 2.0    # Hz, local costmap topic
     max_map_cells: int = MAX_MAP_CELLS      # cells; a bigger `map` message is refused (4000 x 4000)
@@ -349,12 +349,22 @@ class Navigator:
             rs["turned"] += abs(wrap_angle(pose.yaw - rs["yaw"]))
             rs["yaw"] = pose.yaw
             done = rs["turned"] >= 2.0 * math.pi or t - rs["t0"] > 2.0 * 2.0 * math.pi / self.p.rotate_speed + 5.0
+            # the footprint swept over the next half second of turning must be free (a corner of the
+            # camera bar reaches farther than the base)
+            local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
+            check = getattr(self.controller, "rotation_collides", None)
+            if not done and check is not None and check(pose, 0.5 * self.p.rotate_speed, local)[0]:
+                done = True
+                self._say("recovering: rotate skipped (no room to turn on the spot)")
             w = 0.0 if done else self.p.rotate_speed
         elif self.recovery == "back_off":
             moved = math.hypot(pose.x - rs["x"], pose.y - rs["y"])
             behind = Pose2D(pose.x, pose.y, pose.yaw)
             local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
             blocked = _arc_blocked(local, behind, -self.p.back_off_speed, self.p.back_off_distance - moved)
+            arc = getattr(self.controller, "arc_collides", None)
+            if not blocked and arc is not None and getattr(self.controller, "footprint_pts", None) is not None:
+                blocked = arc(pose, -self.p.back_off_speed, 0.0, local)
             timeout = t - rs["t0"] > 3.0 * self.p.back_off_distance / self.p.back_off_speed + 2.0
             done = moved >= self.p.back_off_distance or blocked or timeout
             v = 0.0 if done else -self.p.back_off_speed

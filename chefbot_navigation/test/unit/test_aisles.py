@@ -137,3 +137,18 @@ def test_too_narrow_for_the_inscribed_circle_is_refused_at_once(urdf: str) -> No
     res, took, _, events, _, _ = run.go(Goal(5.0, 1.5, 0.0))
     assert res.outcome == "aborted" and "unreachable" in res.text and took <= 1.0
     assert events[0] == "planning" and events[-1].startswith("aborted: Failed to plan")
+
+
+def test_turning_on_the_spot_is_checked_with_the_footprint(urdf: str) -> None:
+    """In a 0.40 m passage the robot (0.30 m wide) fits straight but its camera bar (0.223 m from the
+    centre) cannot swing round; in the open it can."""
+    run = Run(slot_map(0.40), urdf, Pose2D(3.0, 1.5, 0.0))
+    ctrl = run.nav.controller
+    inside = run.layers.window(3.0, 1.5, 3.0, 3.0)
+    assert ctrl.poses_collide(np.array([3.0]), np.array([1.5]), np.array([0.0]), inside)[0] is False
+    hit, where = ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside)
+    assert hit and abs(where[1] - 1.5) > 0.19
+    open_area = run.layers.window(1.2, 1.5, 3.0, 3.0)
+    assert ctrl.rotation_collides(Pose2D(1.2, 1.5, 0.0), 2 * math.pi, open_area) == (False, None)
+    ctrl.set_footprint(None)     # a round robot: turning sweeps nothing new
+    assert ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside) == (False, None)
