@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import subprocess
 import sys
 import threading
 import unittest
@@ -109,6 +110,22 @@ class CafeAislesTest(unittest.TestCase):
         reached = [AISLE[n] for n, r in results.items() if n in AISLE and r[0] == "reached"]
         print(f"[figure] smallest aisle reached: {min(reached):.2f} m; worst ratio "
               f"{max(r[1] / r[2] for r in results.values() if r[0] == 'reached'):.2f}", flush=True)
+
+
+    def test_z_deliver_command_line(self) -> None:
+        """`deliver TABLE ... --tables FILE` from a script: exit 0, prints the states and 'reached'."""
+        tables = rospy.get_param("~tables")
+        out = subprocess.run(["rosrun", "chefbot_navigation", "deliver", "table_n2", "home", "--tables", tables],
+                             capture_output=True, text=True, timeout=WALL_TIMEOUT, check=False)
+        print(f"[figure] deliver: exit {out.returncode}\n{out.stdout}", flush=True)
+        self.assertEqual(out.returncode, 0, out.stdout + out.stderr)
+        self.assertIn("table_n2: reached in", out.stdout)
+        self.assertIn("home: reached in", out.stdout)
+        self.assertIn("following the path", out.stdout)
+        bad = subprocess.run(["rosrun", "chefbot_navigation", "deliver", "table_99", "--tables", tables],
+                             capture_output=True, text=True, timeout=120, check=False)
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("unknown table(s) table_99", bad.stderr)
 
 
 if __name__ == "__main__":
