@@ -10,11 +10,10 @@ unicycle (test/unicycle_nav.py).
 
 The pybullet version of the cafe legs is tests/test/cafe_aisles.test (figures in the README).
 
-    python chefbot_navigation/bench/bench_aisles.py [--quick]
+    python tools/bench.py -k aisles [--quick]
 """
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -49,9 +48,9 @@ def _cafe(urdf: str, names: list[str] | None) -> list[dict]:
         limit = simple_limit(first.points, lim, yaw0, tg.yaw) if first is not None else float("nan")
         ok = res.outcome == "succeeded"
         rows.append({"bench": "aisles", "case": f"cafe {name} (unicycle, sim s)", "metric": "time / limit",
-                     "ours": took / limit, "reference": limit, "reference_name": "simple limit (s)",
+                     "ours": float(took / limit), "reference": float(limit), "reference_name": "simple limit (s)",
                      "goal": f"<= {RATIO_GOAL:g}, reached, 0 contacts",
-                     "met": ok and touches == 0 and took <= RATIO_GOAL * limit})
+                     "met": bool(ok and touches == 0 and took <= RATIO_GOAL * limit)})
     return rows
 
 
@@ -67,9 +66,9 @@ def _passages(urdf: str, widths: list[float]) -> list[dict]:
         blocked = [t for t, e in run.timeline if e.startswith("blocked")]
         report = took - blocked[0] if blocked else 0.0
         rows.append({"bench": "aisles", "case": f"passage {width:.2f} m: refused ({res.text[:60]})",
-                     "metric": "s blocked -> abort", "ours": report, "reference": None, "reference_name": None,
-                     "goal": f"<= {REFUSE_GOAL_S:g} s with the reason", "met": report <= REFUSE_GOAL_S
-                     and res.outcome == "aborted"})
+                     "metric": "s blocked -> abort", "ours": float(report), "reference": None, "reference_name": None,
+                     "goal": f"<= {REFUSE_GOAL_S:g} s with the reason",
+                     "met": bool(report <= REFUSE_GOAL_S and res.outcome == "aborted")})
     rows.append({"bench": "aisles", "case": f"passages {widths[0]:.2f}-{widths[-1]:.2f} m", "metric":
                  "smallest taken (m)", "ours": min(taken) if taken else float("nan"), "reference": 0.30,
                  "reference_name": "robot width (m)", "goal": "<= 0.50 (the cafe's narrowest)",
@@ -85,17 +84,3 @@ def run(quick: bool = False) -> list[dict]:
     rows = _cafe(urdf, ["table_s3", "table_n3"] if quick else None)
     rows += _passages(urdf, [0.33, 0.38] if quick else [0.30, 0.33, 0.35, 0.36, 0.38, 0.40, 0.45])
     return rows
-
-
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
-    args = ap.parse_args()
-    for r in run(args.quick):
-        ref = "-" if r["reference"] is None else f"{r['reference']:.4g}"
-        print(f"{r['case']:<70} {r['metric']:<20} ours {r['ours']:<8.4g} ref {ref:<8} met {r['met']}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
