@@ -86,3 +86,12 @@ def test_turning_on_the_spot_is_checked_with_the_footprint(urdf: str) -> None:
     assert ctrl.rotation_collides(Pose2D(1.2, 1.5, 0.0), 2 * math.pi, open_area) == (False, None)
     ctrl.set_footprint(None)     # a round robot: turning sweeps nothing new
     assert ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside) == (False, None)
+
+
+def test_plan_keeps_to_the_middle_of_an_aisle(urdf: str) -> None:
+    """The inflation gradient (NavFn's idea) centres the path in a 0.60 m passage (y 1.2..1.8)."""
+    run = Run(slot_map(0.60), urdf, Pose2D(1.0, 1.0, 0.0))
+    plan = run.nav.plan_between((1.0, 1.0), Goal(5.0, 2.0, None))
+    inside = plan.points[(plan.points[:, 0] > 2.55) & (plan.points[:, 0] < 3.45)]
+    assert len(inside) > 10
+    assert np.max(np.abs(inside[:, 1] - 1.5)) <= 0.03, inside[:, 1]
