@@ -7,6 +7,7 @@ WITH_ENV := bash tools/with_env.sh
 
 help:
 	@echo "make demo   - install what is missing, build, run the simulated delivery demo (headless without a display)"
+	@echo "              another site: make demo WORLD=chefbot_sim/worlds/cafe.yaml MAP=chefbot_navigation/maps/cafe_map.yaml TABLES_FILE=chefbot_navigation/maps/cafe_tables.yaml"
 	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
 	@echo "make bench  - benchmarks (ratios side by side, JSON in bench-results/)"
 	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
@@ -19,8 +20,10 @@ setup:
 test: setup
 	@$(WITH_ENV) python tools/run_tests.py
 
+# make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] (or CHEFBOT_DEMO_* variables)
 demo: setup
-	@$(WITH_ENV) python tools/demo.py
+	@$(if $(WORLD),CHEFBOT_DEMO_WORLD='$(WORLD)') $(if $(MAP),CHEFBOT_DEMO_MAP='$(MAP)') \
+	  $(if $(TABLES_FILE),CHEFBOT_DEMO_TABLES_FILE='$(TABLES_FILE)') $(WITH_ENV) python tools/demo.py
 
 bench: setup
 	@$(WITH_ENV) python tools/bench.py

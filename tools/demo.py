@@ -13,7 +13,11 @@ Exit code 0 only when all nine were delivered; nothing is left running,
 Ctrl-C included.  Results also go to build/demo/delivery.json.
 
 Environment: CHEFBOT_DEMO_RTF (sim speed cap, default 1.0; 0 = as fast as
-the machine goes), CHEFBOT_DEMO_TABLES (comma-separated subset, e.g. table_1,table_5).
+the machine goes), CHEFBOT_DEMO_TABLES (comma-separated subset, e.g. table_1,table_5),
+CHEFBOT_DEMO_WORLD (world file, our YAML or an SDF), CHEFBOT_DEMO_MAP (map_server YAML of
+that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``home``) --
+`make demo WORLD=... MAP=... TABLES_FILE=...` sets them.  Every name starting with
+``table`` in the tables file is a delivery target.
 """
 from __future__ import annotations
 
@@ -77,6 +81,12 @@ def tf_tree(timeout: float) -> dict[str, str]:
 
 def main() -> int:
     rtf = os.environ.get("CHEFBOT_DEMO_RTF", "1.0")
+    site = {k: os.environ.get(f"CHEFBOT_DEMO_{k.upper()}", "") for k in ("world", "map", "tables_file")}
+    for key, value in site.items():
+        if value and not Path(value).is_file():
+            say(f"ERROR: CHEFBOT_DEMO_{key.upper()} names {value}, which is not a file")
+            return 2
+    tables_file = Path(site["tables_file"]).resolve() if site["tables_file"] else TABLES_FILE
     port = free_port()
     uri = f"http://127.0.0.1:{port}"
     env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(LOG_DIR / "ros_home"))
@@ -86,17 +96,28 @@ def main() -> int:
         f"log: {log.relative_to(ROOT)}")
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
     launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "navigation_demo.launch", f"real_time_factor:={rtf}"]
+    from chefbot_common.tables import TablesError, load_tables
+    try:
+        tables = load_tables(tables_file)
+    except TablesError as exc:
+        say(f"ERROR: {exc}")
+        return 2
+    if site["world"]:
+        launch_cmd.append(f"world:={Path(site['world']).resolve()}")
+    if site["map"]:
+        launch_cmd.append(f"map_file:={Path(site['map']).resolve()}")
+    if "home" in tables:
+        home = tables["home"]
+        launch_cmd += [f"x:={home.x}", f"y:={home.y}", f"yaw:={home.yaw}"]
     with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
             ProcessGroup(launch_cmd, env=env, log=log) as launch:
         import rosgraph
         import rospy
 
-        from chefbot_common.tables import load_tables
         sys.path.insert(0, str(ROOT / "tools"))
         from delivery import DeliveryClient
 
-        tables = load_tables(TABLES_FILE)
-        names = [n for n in tables if n.startswith("table_")]
+        names = [n for n in tables if n.startswith("table")]
         subset = os.environ.get("CHEFBOT_DEMO_TABLES")
         if subset:
             names = [n.strip() for n in subset.split(",") if n.strip()]
@@ -132,7 +153,7 @@ def main() -> int:
         say(f"TF tree ({len(parents) + 1} frames):")
         print_tree(parents)
 
-        say(f"delivering to {len(names)} tables, then home ({TABLES_FILE.relative_to(ROOT)})")
+        say(f"delivering to {len(names)} tables, then home ({tables_file})")
         legs = []
         t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
         for name in [*names, "home"]:

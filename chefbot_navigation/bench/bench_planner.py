@@ -16,6 +16,7 @@ import argparse
 import statistics
 import sys
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,7 @@ sys.path.insert(0, str(ROOT / "chefbot_navigation" / "test"))  # maps_gen, plann
 from maps_gen import office_map  # noqa: E402  (test-only helper)
 from planner_reference import exact_cost, grid_graph  # noqa: E402  (test-only helper)
 
-from chefbot_common.map_io import load_map  # noqa: E402
+from chefbot_common.map_io import MAX_MAP_CELLS, load_map  # noqa: E402
 from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap  # noqa: E402
 from chefbot_navigation.planners import PlannerParams, cell_costs, make_planner  # noqa: E402
 
@@ -92,6 +93,49 @@ def _measure(case: str, cm, pairs, planner_name: str, reps: int) -> list[dict]:
     ]
 
 
+# one plan on the largest allowed map: <= 32 bytes per cell (512 MB at 16 M cells); issue 10 saw a
+# 20000^2 map ask 2.98 GiB in one allocation
+MEMORY_GOAL_MB = 32.0 * MAX_MAP_CELLS / 1e6
+
+
+def _rss_mb(field: str) -> float:
+    """VmRSS / VmHWM of this process (MB) from /proc (Linux)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def _measure_memory(planner_name: str) -> list[dict]:
+    """Peak memory of one plan across the largest map move_base accepts (max_map_cells = 4000 x 4000)."""
+    size = int(MAX_MAP_CELLS ** 0.5)
+    cm = LayeredCostmap(office_map(size, clutter=3000, seed=0), CostmapParams()).master()
+    planner = make_planner(planner_name, PlannerParams())
+    start, goal = (5.0, 5.0), (size * 0.05 - 10.0, size * 0.05 - 10.0)   # corner to corner, ~266 m
+    base_rss = _rss_mb("VmRSS")
+    try:
+        Path("/proc/self/clear_refs").write_text("5")     # reset VmHWM (the peak RSS) to the current RSS
+        hwm_ok = True
+    except OSError:
+        hwm_ok = False
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    plan = planner.plan(cm, start, goal)
+    seconds = time.perf_counter() - t0
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    rss_delta = _rss_mb("VmHWM") - base_rss if hwm_ok else None
+    case = f"office {size}x{size} ({size * size / 1e6:g} M cells = max_map_cells), corner to corner ({planner_name})"
+    ref = "peak RSS growth (VmHWM - VmRSS)"
+    return [
+        {"bench": "planner", "case": case, "metric": "peak MB/plan (tracemalloc)", "ours": peak / 1e6,
+         "reference": rss_delta, "reference_name": ref, "goal": f"<= {MEMORY_GOAL_MB:g} MB",
+         "met": peak / 1e6 <= MEMORY_GOAL_MB},
+        {"bench": "planner", "case": case, "metric": "s/plan (under tracemalloc)", "ours": seconds,
+         "reference": None, "reference_name": f"path {len(plan.points) * 0.05:.0f} m", "goal": None, "met": None},
+    ]
+
+
 def run(quick: bool = False) -> list[dict]:
     """Benchmark rows (see tools/bench.py)."""
     rows: list[dict] = []
@@ -106,6 +150,7 @@ def run(quick: bool = False) -> list[dict]:
     rows += _measure("office 1200x1200 (1.44 M cells), random >= 20 m", office, pairs, "hierarchical", reps)
     if not quick:
         rows += _measure("office 1200x1200 (1.44 M cells), random >= 20 m", office, pairs[:3], "dijkstra", 1)
+    rows += _measure_memory("hierarchical")
     return rows
 
 

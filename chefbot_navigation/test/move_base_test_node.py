@@ -16,6 +16,7 @@ import actionlib
 import rospy
 import rostest
 from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Path
@@ -253,6 +254,25 @@ class MoveBaseTest(unittest.TestCase):
                 sub.unregister()
             cancel.unregister()
             goal_pub.unregister()
+
+    def test_r_map_above_max_map_cells_refused_goal_aborted_with_reason(self) -> None:
+        """issue 10 item 3: a map bigger than ~max_map_cells is refused with a clear error; the node keeps
+        running, answers goals with the reason and reports it on diagnostics."""
+        diags: list[DiagnosticArray] = []
+        sub = rospy.Subscriber("tiny_map_limit/diagnostics", DiagnosticArray, diags.append)
+        client = actionlib.SimpleActionClient("tiny_map_limit/move_base", MoveBaseAction)
+        try:
+            self.assertTrue(client.wait_for_server(rospy.Duration(60.0)), "no tiny_map_limit/move_base server")
+            client.send_goal(make_goal(1.0, 0.0))
+            self.assertTrue(client.wait_for_result(rospy.Duration(WALL_TIMEOUT)), "no result")
+            self.assertEqual(client.get_state(), GoalStatus.ABORTED)
+            text = client.get_goal_status_text()
+            self.assertIn("map refused", text)
+            self.assertIn("more than the maximum of 1,000 cells (param max_map_cells)", text)
+            wait_for(lambda: any(st.level == DiagnosticStatus.ERROR and "map refused" in st.message
+                                 for d in diags for st in d.status), 60.0, "map refusal on diagnostics")
+        finally:
+            sub.unregister()
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],

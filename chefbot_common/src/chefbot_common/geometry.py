@@ -45,8 +45,8 @@ class QuaternionError(ValueError):
 def yaw_from_quaternion(x: float, y: float, z: float, w: float, zero_policy: str = "reject") -> float | None:
     """Yaw (rad) of a quaternion that need not be normalised.
 
-    ``zero_policy`` decides what an all-zero quaternion (as sent by the book's
-    GUI) means: ``"reject"`` raises :class:`QuaternionError`, ``"identity"``
+    ``zero_policy`` decides what an all-zero quaternion (a client that fills no
+    orientation at all) means: ``"reject"`` raises :class:`QuaternionError`, ``"identity"``
     returns 0.0 (the intended (0, 0, 0, 1)), ``"ignore_yaw"`` returns None
     (the caller then skips the final heading alignment).  NaN/inf components
     always raise.  Roll/pitch are dropped: a planar robot can only honour yaw.

@@ -8,9 +8,12 @@ Interface: ``LocalController`` with ``set_path``, ``reset`` and
   the robot (near obstacles) and on the final approach (v <= sqrt(2 a d));
 * rotates in place first when the path leaves at a large angle;
 * every command is checked by forward-simulating its arc over a horizon on
-  the local costmap: a command whose arc enters an inscribed/lethal/unknown
-  cell is slowed down, and if even a crawl collides the robot stops and the
-  controller reports ``blocked`` (the navigator then replans);
+  the local costmap with the robot's footprint (:meth:`set_footprint`; points
+  covering the polygon, checked against lethal/unknown cells -- without one, the
+  centre against inscribed cells): a colliding command is slowed down, and if
+  even a crawl collides the robot stops and reports ``blocked`` with where;
+* rotations in place are checked too (the footprint swept over the turn): if
+  the shorter way round collides the other is tried, else ``blocked``;
 * final approach: once within ``xy_goal_tolerance`` (an internal, tighter
   target is used to leave margin) it rotates in place to the goal yaw;
   if the goal is close behind the robot it backs up instead of turning round;
@@ -26,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from chefbot_common.geometry import Pose2D, wrap_angle
-from chefbot_navigation.costmap import INSCRIBED, Costmap
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
 
 
 @dataclass(frozen=True)
@@ -69,12 +72,15 @@ class ControllerParams:
 @dataclass
 class Command:
     """Velocity command (m/s, rad/s) and the controller's status: ``following``, ``rotating``
-    (final yaw alignment), ``arrived`` (zero command) or ``blocked`` (zero translation)."""
+    (final yaw alignment), ``arrived`` (zero command) or ``blocked`` (zero translation);
+    ``detail`` says more (``slowing for obstacle``, ``turning on the spot``, why blocked) and
+    ``where`` is the (x, y) m of a blocking collision when known."""
 
     v: float
     w: float
     status: str
     detail: str = ""
+    where: tuple[float, float] | None = None
 
 
 class LocalController(Protocol):
@@ -117,7 +123,43 @@ class RegulatedPurePursuit:
         self.p = params
         self.path = np.zeros((0, 2))
         self.goal_yaw: float | None = None
+        self.footprint_pts: np.ndarray | None = None
         self.reset()
+
+    def set_footprint(self, points: np.ndarray | None) -> None:
+        """Points (K, 2) m covering the robot's footprint in its base frame (None: round robot, centre
+        checked against inscribed cells)."""
+        self.footprint_pts = None if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
+
+    def poses_collide(self, xs: np.ndarray, ys: np.ndarray, yaws: np.ndarray,
+                      costmap: Costmap) -> tuple[bool, tuple[float, float] | None]:
+        """Does the robot at any of the poses (m, rad) overlap a lethal/unknown cell? And the first such point."""
+        xs, ys, yaws = np.atleast_1d(xs), np.atleast_1d(ys), np.atleast_1d(yaws)
+        if self.footprint_pts is None:
+            cost = costmap.cost_at(xs, ys)
+            hit = np.nonzero(cost >= INSCRIBED)[0]
+            return (True, (float(xs[hit[0]]), float(ys[hit[0]]))) if len(hit) else (False, None)
+        fp = self.footprint_pts
+        c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+        px = xs[:, None] + c * fp[None, :, 0] - s * fp[None, :, 1]
+        py = ys[:, None] + s * fp[None, :, 0] + c * fp[None, :, 1]
+        cost = costmap.cost_at(px, py)
+        hit = np.argwhere(cost >= LETHAL)
+        if len(hit) == 0:
+            return False, None
+        i, k = hit[0]
+        return True, (float(px[i, k]), float(py[i, k]))
+
+    def rotation_collides(self, pose: Pose2D, angle: float, costmap: Costmap) -> tuple[bool, tuple | None]:
+        """Would turning on the spot by ``angle`` rad (signed) sweep the footprint into an obstacle?"""
+        if self.footprint_pts is None or abs(angle) < 1e-6:
+            return False, None
+        n = max(int(math.ceil(abs(angle) / 0.05)), 1)
+        yaws = pose.yaw + np.linspace(0.0, angle, n + 1)[1:]
+        here = self.poses_collide(np.array([pose.x]), np.array([pose.y]), np.array([pose.yaw]), costmap)[0]
+        if here:
+            return False, None     # already touching (e.g. mislocalised): turning may free it, do not freeze
+        return self.poses_collide(np.full(n, pose.x), np.full(n, pose.y), yaws, costmap)
 
     def reset(self) -> None:
         """Forget the motion state (speeds, time, progress along the path)."""
@@ -157,12 +199,24 @@ class RegulatedPurePursuit:
         return rest[beyond[0]] if len(beyond) else rest[-1]
 
     def arc_collides(self, pose: Pose2D, v: float, w: float, costmap: Costmap) -> bool:
-        """Does the arc of (v, w) over the horizon (plus stopping) enter a cell of cost >= 253?"""
+        """Does the arc of (v, w) over the horizon (plus stopping) hit an obstacle (footprint vs lethal
+        cells, or without a footprint the centre vs cells of cost >= 253)?  The point is kept in
+        ``self.last_hit``."""
+        self.last_hit = None
         if abs(v) < 1e-6:
-            return False   # rotating in place sweeps nothing new for a round footprint
+            return False   # turning on the spot is checked by rotation_collides
         horizon = self.p.collision_horizon + abs(v) / self.p.decel_lim_x
         n = max(int(math.ceil(abs(v) * horizon / (0.5 * costmap.info.resolution))), 2)
-        xs, ys, _ = arc_points(pose, v, w, np.linspace(0.0, horizon, n + 1)[1:])
+        xs, ys, yaws = arc_points(pose, v, w, np.linspace(0.0, horizon, n + 1)[1:])
+        if self.footprint_pts is not None:
+            touching, _ = self.poses_collide(np.array([pose.x]), np.array([pose.y]), np.array([pose.yaw]), costmap)
+            if touching:
+                # already touching (a bump, mislocalisation): allow moves that end free
+                hit, where = self.poses_collide(xs[-1:], ys[-1:], yaws[-1:], costmap)
+            else:
+                hit, where = self.poses_collide(xs, ys, yaws, costmap)
+            self.last_hit = where
+            return hit
         cost = costmap.cost_at(xs, ys)
         here = int(costmap.cost_at(pose.x, pose.y))
         if here >= INSCRIBED:
@@ -172,7 +226,7 @@ class RegulatedPurePursuit:
         return bool(np.any(cost >= INSCRIBED))
 
     def _emit(self, v: float, w: float, t: float, dt: float, status: str, detail: str = "",
-              emergency: bool = False) -> Command:
+              emergency: bool = False, where: tuple[float, float] | None = None) -> Command:
         p = self.p
         v = min(max(v, -p.max_vel_x), p.max_vel_x)
         w = min(max(w, -p.max_vel_theta), p.max_vel_theta)
@@ -180,14 +234,25 @@ class RegulatedPurePursuit:
         v = _limit(v, self.v, rate, dt)
         w = _limit(w, self.w, p.acc_lim_theta, dt)
         self.v, self.w, self.t = v, w, t
-        return Command(v, w, status, detail)
+        return Command(v, w, status, detail, where)
 
-    def _rotate_to(self, err: float, t: float, dt: float, status: str) -> Command:
+    def _rotate_to(self, err: float, t: float, dt: float, status: str, pose: Pose2D | None = None,
+                   costmap: Costmap | None = None) -> Command:
         p = self.p
+        if pose is not None and costmap is not None:
+            hit, where = self.rotation_collides(pose, err, costmap)
+            if hit:
+                other = err - math.copysign(2.0 * math.pi, err)      # the long way round
+                hit2, _ = self.rotation_collides(pose, other, costmap)
+                if hit2:
+                    return self._emit(0.0, 0.0, t, dt, "blocked", "no room to turn on the spot", where=where,
+                                      emergency=True)
+                err = other
         # decelerate to stop exactly at the target heading: w <= sqrt(2 a |err|)
         mag = min(p.max_vel_theta, p.rotation_gain * abs(err), math.sqrt(2.0 * p.acc_lim_theta * abs(err)))
         mag = max(mag, p.min_in_place_vel_theta)
-        return self._emit(0.0, math.copysign(mag, err), t, dt, status)
+        return self._emit(0.0, math.copysign(mag, err), t, dt, status,
+                          "turning on the spot" if status == "following" else "")
 
     def _goal_sideways(self, pose: Pose2D) -> bool:
         gx, gy = self.path[-1]
@@ -220,7 +285,7 @@ class RegulatedPurePursuit:
             # stop short of the tolerance: the robot keeps turning a little after the zero command
             if abs(err) <= 0.5 * p.yaw_goal_tolerance:
                 return self._emit(0.0, 0.0, t, dt, "arrived")
-            return self._rotate_to(err, t, dt, "rotating")
+            return self._rotate_to(err, t, dt, "rotating", pose, costmap)
 
         lookahead = min(max(abs(self.v) * p.lookahead_time, p.min_lookahead_dist), p.max_lookahead_dist)
         target = self._lookahead_point(pose, lookahead)
@@ -236,14 +301,21 @@ class RegulatedPurePursuit:
             # rotating in place first keeps the robot on the path instead of swinging wide
             if abs(self.v) > 1e-3:
                 return self._emit(0.0, self.w, t, dt, "following", "stopping to turn")
-            return self._rotate_to(alpha, t, dt, "following")
+            cmd = self._rotate_to(alpha, t, dt, "following", pose, costmap)
+            if cmd.status == "blocked" and abs(alpha) > 0.5 * math.pi:
+                # no room to turn round (a dead-end aisle): back out along the path instead
+                back = self._back_out(pose, -lx, -ly, t, dt, costmap)
+                if back is not None:
+                    return back
+            return cmd
         l2 = lx * lx + ly * ly
         curvature = 2.0 * ly / l2 if l2 > 1e-9 else 0.0
         v = p.max_vel_x
         if abs(curvature) > 1e-9 and 1.0 / abs(curvature) < p.regulated_min_radius:
             v *= (1.0 / abs(curvature)) / p.regulated_min_radius
         here = float(costmap.cost_at(pose.x, pose.y, outside=0))
-        v *= 1.0 - p.near_obstacle_slowdown * min(here, 252.0) / 252.0
+        slow = p.near_obstacle_slowdown * min(here, 252.0) / 252.0
+        v *= 1.0 - slow
         if near_goal:
             v = min(v, max(p.approach_gain * dist_goal, p.min_approach_vel),
                     math.sqrt(2.0 * p.acc_lim_x * dist_goal))
@@ -257,12 +329,56 @@ class RegulatedPurePursuit:
             v *= p.max_vel_theta / abs(w)
             w = math.copysign(p.max_vel_theta, w)
         # collision check of the command after the acceleration limits would apply
+        where = None
         for scale in (1.0, 0.5, 0.25):
             vv = _limit(v * scale, self.v, p.acc_lim_x, dt)
             ww = _limit(w * scale, self.w, p.acc_lim_theta, dt)
             if not self.arc_collides(pose, vv, ww, costmap):
-                return self._emit(v * scale, w * scale, t, dt, "following")
-        return self._emit(0.0, 0.0, t, dt, "blocked", "obstacle ahead on the path", emergency=True)
+                detail = "slowing for obstacle" if scale < 1.0 else ""
+                return self._emit(v * scale, w * scale, t, dt, "following", detail)
+            where = where or self.last_hit
+        if not reverse:
+            # narrow passage (pure pursuit cuts the corner into an aisle): follow the path itself --
+            # turn on the spot towards a point just ahead, then creep along it
+            cmd = self._squeeze(pose, t, dt, costmap)
+            if cmd is not None:
+                return cmd
+        return self._emit(0.0, 0.0, t, dt, "blocked", "obstacle ahead on the path", emergency=True, where=where)
+
+    def _back_out(self, pose: Pose2D, lx: float, ly: float, t: float, dt: float,
+                  costmap: Costmap) -> Command | None:
+        """Reverse slowly towards the mirrored lookahead point (``lx``, ``ly`` m in the robot frame, i.e.
+        the real target is behind), or None if that collides or the target is not roughly behind."""
+        p = self.p
+        alpha = math.atan2(ly, lx)
+        if abs(alpha) > 0.6:
+            return None
+        l2 = lx * lx + ly * ly
+        curvature = 2.0 * ly / l2 if l2 > 1e-9 else 0.0
+        v = -min(0.1, p.max_vel_x)
+        w = min(max(-v * curvature, -p.max_vel_theta), p.max_vel_theta)
+        if self.arc_collides(pose, _limit(v, self.v, p.acc_lim_x, dt), _limit(w, self.w, p.acc_lim_theta, dt),
+                             costmap):
+            return None
+        return self._emit(v, w, t, dt, "following", "backing out of a narrow passage")
+
+    def _squeeze(self, pose: Pose2D, t: float, dt: float, costmap: Costmap) -> Command | None:
+        """A slow command that tracks the path closely (lookahead 0.12 m), or None if that collides too."""
+        p = self.p
+        target = self._lookahead_point(pose, 0.12)
+        alpha = wrap_angle(math.atan2(target[1] - pose.y, target[0] - pose.x) - pose.yaw)
+        if abs(alpha) > 0.2:
+            if abs(self.v) > 1e-3:
+                return self._emit(0.0, self.w, t, dt, "following", "stopping to turn", emergency=True)
+            cmd = self._rotate_to(alpha, t, dt, "following", pose, costmap)
+            return cmd if cmd.status != "blocked" else None
+        d = math.hypot(target[0] - pose.x, target[1] - pose.y)
+        v = min(0.1, p.max_vel_x)
+        w = min(max(2.0 * v * math.sin(alpha) / max(d, 1e-3), -p.max_vel_theta), p.max_vel_theta)
+        if self.arc_collides(pose, _limit(v, self.v, p.acc_lim_x, dt), _limit(w, self.w, p.acc_lim_theta, dt),
+                             costmap):
+            return None
+        return self._emit(v, w, t, dt, "following", "squeezing through a narrow passage")
 
 
 CONTROLLERS = {"regulated_pure_pursuit": RegulatedPurePursuit}

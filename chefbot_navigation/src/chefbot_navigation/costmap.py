@@ -27,7 +27,10 @@ NO_INFORMATION = 255
 class CostmapParams:
     """Costmap tunables (names as costmap_2d's where the meaning matches)."""
 
-    robot_radius: float = 0.20          # m, inscribed radius (base radius 0.178 + margin)
+    robot_radius: float = 0.20          # m, inscribed radius; replaced by the footprint's when there is one
+    circumscribed_radius: float = 0.0   # m, 0 = robot_radius (round robot); set from the footprint
+    footprint: str = "urdf"             # urdf (robot_description) | radius (round, robot_radius) | [[x, y], ...]
+    footprint_padding: float = 0.01     # m added around the footprint polygon
     inflation_radius: float = 0.55      # m, cost decays to 0 beyond this distance from an obstacle
     cost_scaling_factor: float = 5.0    # 1/m, exponential decay rate of the inflated cost
     obstacle_range: float = 2.5         # m, scan returns farther than this are not marked
@@ -39,6 +42,11 @@ class CostmapParams:
     def __post_init__(self) -> None:
         if not self.robot_radius > 0.0:
             raise ValueError(f"robot_radius must be > 0 m, got {self.robot_radius}")
+        if self.circumscribed_radius and self.circumscribed_radius < self.robot_radius:
+            raise ValueError(f"circumscribed_radius ({self.circumscribed_radius}) must be >= robot_radius "
+                             f"({self.robot_radius})")
+        if self.footprint_padding < 0.0:
+            raise ValueError(f"footprint_padding must be >= 0 m, got {self.footprint_padding}")
         if not self.inflation_radius >= self.robot_radius:
             raise ValueError(f"inflation_radius ({self.inflation_radius}) must be >= robot_radius "
                              f"({self.robot_radius})")

@@ -36,9 +36,11 @@ from typing import Any
 import numpy as np
 
 from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
+from chefbot_common.map_io import MAX_MAP_CELLS
 from chefbot_common.params import read_config
 from chefbot_navigation.controller import CONTROLLERS, ControllerParams, LocalController, make_controller
-from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, CostmapParams, LayeredCostmap
+from chefbot_navigation.footprint import Footprint
 from chefbot_navigation.planners import PLANNERS, GlobalPlanner, Plan, PlannerParams, PlanningError, make_planner
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
@@ -60,12 +62,14 @@ class NavigatorParams:
     back_off_distance: float = 0.15       # m
     back_off_speed: float = 0.08          # m/s
     rotate_speed: float = 1.0             # rad/s of the rotate recovery
+    narrow_patience: float = 5.0          # s blocked by the static map (a passage narrower than the robot) -> abort
 
     def __post_init__(self) -> None:
         if self.planner_frequency < 0.0:
             raise ValueError(f"planner_frequency must be >= 0 Hz, got {self.planner_frequency}")
         for name in ("planner_patience", "controller_patience", "oscillation_distance", "path_check_distance",
-                     "local_window", "back_off_distance", "back_off_speed", "rotate_speed"):
+                     "local_window", "back_off_distance", "back_off_speed", "rotate_speed",
+                     "narrow_patience"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.oscillation_timeout < 0.0:
@@ -83,11 +87,14 @@ class NodeParams:
     sensor_timeout: float = 1.0             # s without scan -> stop (0 disables the check)
     base_global_planner: str = "hierarchical"
     base_local_planner: str = "regulated_pure_pursuit"
-    zero_quaternion_policy: str = "identity"   # identity | ignore_yaw | reject
+    zero_quaternion_policy: str = "identity"   # all-zero (unset) quaternion: identity | ignore_yaw | reject
     global_publish_frequency: float = 1.0   # Hz, global costmap topic
     local_publish_frequency: float = 2.0    # Hz, local costmap topic
+    max_map_cells: int = MAX_MAP_CELLS      # cells; a bigger `map` message is refused (4000 x 4000)
 
     def __post_init__(self) -> None:
+        if not self.max_map_cells >= 1:
+            raise ValueError(f"max_map_cells must be >= 1, got {self.max_map_cells}")
         if not self.controller_frequency >= 1.0:
             raise ValueError(f"controller_frequency must be >= 1 Hz, got {self.controller_frequency}")
         if not self.transform_tolerance > 0.0:
@@ -148,12 +155,29 @@ def parse_goal(position: tuple[float, float, float], orientation: tuple[float, f
     return Pose2D(x, y, yaw or 0.0), yaw is not None
 
 
+def costmap_params_for(cost: CostmapParams, footprint: Footprint | None) -> CostmapParams:
+    """``cost`` with the inscribed/circumscribed radii of ``footprint`` (unchanged when None)."""
+    if footprint is None:
+        return cost
+    inscribed, circumscribed = footprint.inscribed_radius, footprint.circumscribed_radius
+    return dataclasses.replace(cost, robot_radius=inscribed, circumscribed_radius=circumscribed,
+                               inflation_radius=max(cost.inflation_radius, circumscribed))
+
+
 def build_navigator(occ, node: NodeParams, nav: NavigatorParams, ctrl: ControllerParams, cost: CostmapParams,
-                    plan: PlannerParams, old: Navigator | None, t: float) -> tuple[LayeredCostmap, Navigator]:
-    """Costmap and navigator for a (new) map; the goal of ``old`` carries over, restarted at ``t`` (s)."""
+                    plan: PlannerParams, old: Navigator | None, t: float,
+                    footprint: Footprint | None = None) -> tuple[LayeredCostmap, Navigator]:
+    """Costmap and navigator for a (new) map; the goal of ``old`` carries over, restarted at ``t`` (s).
+
+    With a ``footprint`` the costmap uses its inscribed radius (cost 253) and the controller checks
+    the polygon (points every half cell) against lethal cells."""
+    cost = costmap_params_for(cost, footprint)
     layers = LayeredCostmap(occ, cost)
+    controller = make_controller(node.base_local_planner, ctrl)
+    if footprint is not None and hasattr(controller, "set_footprint"):
+        controller.set_footprint(footprint.samples(0.5 * occ.info.resolution))
     navigator = Navigator(nav, ctrl, make_planner(node.base_global_planner, plan, cost.robot_radius),
-                          make_controller(node.base_local_planner, ctrl), layers)
+                          controller, layers)
     if old is not None and old.goal is not None:
         navigator.set_goal(old.goal, t)
     return layers, navigator
@@ -195,6 +219,7 @@ class StepResult:
     outcome: str | None = None
     text: str = ""
     new_plan: Plan | None = None
+    events: list[str] = dataclasses.field(default_factory=list)   # goal status changes this step (log once)
 
 
 class Navigator:
@@ -210,7 +235,19 @@ class Navigator:
         self.goal: Goal | None = None
         self.plan: Plan | None = None
         self.state = "idle"
+        self.status = "idle"            # human-readable goal status (the last event)
+        self._events: list[str] = []
         self._reset_timers(0.0)
+
+    def _say(self, status: str) -> None:
+        """Record a goal status change (the node logs each once and publishes the latest)."""
+        if status != self.status:
+            self.status = status
+            self._events.append(status)
+
+    def _out(self, res: StepResult) -> StepResult:
+        res.events, self._events = self._events, []
+        return res
 
     def _reset_timers(self, t: float) -> None:
         self.last_valid_plan = t
@@ -224,6 +261,7 @@ class Navigator:
         self.osc_time = t
         self.cleared_for_goal = False
         self.stale_since: float | None = None
+        self.blocked_since: float | None = None
 
     # --- goal management -------------------------------------------------------------------------
     def set_goal(self, goal: Goal, t: float) -> None:
@@ -231,6 +269,8 @@ class Navigator:
         self.goal = goal
         self.plan = None
         self.state = "planning"
+        self.status = ""
+        self._say("planning")
         self._reset_timers(t)
 
     def restart(self, t: float) -> None:
@@ -247,6 +287,7 @@ class Navigator:
         self.goal = None
         self.plan = None
         self.state = "idle"
+        self.status = "idle"
         self.controller.reset()
 
     # --- helpers -----------------------------------------------------------------------------------
@@ -255,6 +296,7 @@ class Navigator:
         self.plan = None
         self.state = "idle"
         self.controller.reset()
+        self._say(f"{outcome}: {text}")
         return StepResult(0.0, 0.0, "idle", outcome, text)
 
     def _try_plan(self, pose: Pose2D, t: float) -> tuple[Plan | None, PlanningError | None]:
@@ -293,6 +335,7 @@ class Navigator:
         self.recovery_state = {"t0": t, "yaw": pose.yaw, "turned": 0.0, "x": pose.x, "y": pose.y}
         self.state = "recovering"
         self.controller.reset()
+        self._say(f"recovering: {self.recovery.replace('_', ' ')} (because {why})")
         return self._recover(t, pose)
 
     def _recover(self, t: float, pose: Pose2D) -> StepResult:
@@ -306,12 +349,22 @@ class Navigator:
             rs["turned"] += abs(wrap_angle(pose.yaw - rs["yaw"]))
             rs["yaw"] = pose.yaw
             done = rs["turned"] >= 2.0 * math.pi or t - rs["t0"] > 2.0 * 2.0 * math.pi / self.p.rotate_speed + 5.0
+            # the footprint swept over the next half second of turning must be free (a corner of the
+            # camera bar reaches farther than the base)
+            local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
+            check = getattr(self.controller, "rotation_collides", None)
+            if not done and check is not None and check(pose, 0.5 * self.p.rotate_speed, local)[0]:
+                done = True
+                self._say("recovering: rotate skipped (no room to turn on the spot)")
             w = 0.0 if done else self.p.rotate_speed
         elif self.recovery == "back_off":
             moved = math.hypot(pose.x - rs["x"], pose.y - rs["y"])
             behind = Pose2D(pose.x, pose.y, pose.yaw)
             local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
             blocked = _arc_blocked(local, behind, -self.p.back_off_speed, self.p.back_off_distance - moved)
+            arc = getattr(self.controller, "arc_collides", None)
+            if not blocked and arc is not None and getattr(self.controller, "footprint_pts", None) is not None:
+                blocked = arc(pose, -self.p.back_off_speed, 0.0, local)
             timeout = t - rs["t0"] > 3.0 * self.p.back_off_distance / self.p.back_off_speed + 2.0
             done = moved >= self.p.back_off_distance or blocked or timeout
             v = 0.0 if done else -self.p.back_off_speed
@@ -322,11 +375,16 @@ class Navigator:
             self.last_valid_plan = t
             self.last_valid_control = t
             self.osc_pose, self.osc_time = pose, t
+            self._say("planning")
             return StepResult(0.0, 0.0, "planning")
         return StepResult(v, w, "recovering")
 
     # --- main step ---------------------------------------------------------------------------------
     def step(self, t: float, pose: Pose2D | None, why: str = "") -> StepResult:
+        """Advance the state machine (see :meth:`_step`); ``events`` lists the status changes."""
+        return self._out(self._step(t, pose, why))
+
+    def _step(self, t: float, pose: Pose2D | None, why: str = "") -> StepResult:
         """Advance the state machine at time ``t`` (s) with the robot at ``pose`` (map frame).
 
         ``pose`` None means there is no usable pose now (``why``: stale tf, no recent scan):
@@ -338,15 +396,20 @@ class Navigator:
             self.stale_since = t if self.stale_since is None else self.stale_since
             if t - self.stale_since > self.p.controller_patience:
                 return self._finish("aborted", f"Stopped for {self.p.controller_patience:g} s: {why}")
+            self._say(f"stopped: {why}")
             return StepResult(0.0, 0.0, self.state, text=why)
         self.stale_since = None
         if self.state == "recovering":
             return self._recover(t, pose)
         new_plan = None
-        periodic = (self.p.planner_frequency > 0.0 and t - self.last_plan_time >= 1.0 / self.p.planner_frequency)
+        # planner_frequency bounds every replanning, also the ones a blocked path asks for (a blocked
+        # controller used to replan -- and publish a plan -- at every control cycle)
+        period = 1.0 / self.p.planner_frequency if self.p.planner_frequency > 0.0 else 1.0
+        due = t - self.last_plan_time >= period
+        periodic = self.p.planner_frequency > 0.0 and due
         if self.plan is not None and not self.need_plan and self._path_blocked(pose):
             self.need_plan = True
-        if self.need_plan or periodic:
+        if (self.need_plan and (self.plan is None or due)) or periodic:
             plan, err = self._try_plan(pose, t)
             if plan is not None:
                 self.plan = plan
@@ -360,7 +423,7 @@ class Navigator:
                     # the blocking cells may be stale marks from the scan: forget them and retry once
                     self.cleared_for_goal = True
                     self.costmap.clear_obstacles()
-                    return self.step(t, pose)
+                    return self._step(t, pose)
                 return self._finish("aborted", f"Failed to plan: {err.reason}")
             elif self.plan is None or self.need_plan:
                 if t - self.last_valid_plan > self.p.planner_patience:
@@ -375,11 +438,27 @@ class Navigator:
             return self._finish("succeeded", "Goal reached.")
         if cmd.status == "blocked":
             self.need_plan = True
+            self.blocked_since = t if self.blocked_since is None else self.blocked_since
+            narrow = cmd.where is not None and self._static_obstacle_at(*cmd.where)
+            at = f" at ({cmd.where[0]:.2f}, {cmd.where[1]:.2f})" if cmd.where is not None else ""
+            if narrow:
+                self._say(f"blocked: passage narrower than the robot{at} ({cmd.detail})")
+                if t - self.blocked_since > self.p.narrow_patience:
+                    # the map itself leaves no room: replanning, clearing or waiting cannot help
+                    return self._finish("aborted", f"blocked: aisle narrower than the robot{at} "
+                                                   f"for {self.p.narrow_patience:g} s")
+            else:
+                self._say(f"blocked: {cmd.detail}{at}")
             if t - self.last_valid_control > self.p.controller_patience:
                 return self._start_recovery(t, pose, f"no safe velocity command for "
-                                                     f"{self.p.controller_patience:g} s (path blocked)")
+                                                     f"{self.p.controller_patience:g} s (path blocked{at})")
         else:
             self.last_valid_control = t
+            self.blocked_since = None
+            if cmd.status == "rotating":
+                self._say("rotating to the goal heading")
+            else:
+                self._say(cmd.detail or "following the path")
         # oscillation: not translating although the goal is not reached (final rotation excepted)
         if self.osc_pose is None or pose.distance(self.osc_pose) >= self.p.oscillation_distance \
                 or cmd.status == "rotating":
@@ -391,6 +470,14 @@ class Navigator:
                                                  f"{self.p.oscillation_distance:g} m in "
                                                  f"{self.p.oscillation_timeout:g} s")
         return StepResult(cmd.v, cmd.w, "controlling", new_plan=new_plan)
+
+
+    def _static_obstacle_at(self, x: float, y: float) -> bool:
+        """Is there a lethal cell of the static map within one cell of (x, y) m?"""
+        info = self.costmap.info
+        r, c = (int(v) for v in info.world_to_cell(x, y))
+        r0, r1, c0, c1 = max(r - 1, 0), min(r + 2, info.height), max(c - 1, 0), min(c + 2, info.width)
+        return r0 < r1 and c0 < c1 and bool(np.any(self.costmap.static[r0:r1, c0:c1] == LETHAL))
 
 
 def _arc_blocked(costmap, pose: Pose2D, v: float, dist: float) -> bool:

@@ -260,11 +260,12 @@ class HierarchicalPlanner(DijkstraPlanner):
         # way exists, so the corridor search below rarely needs the full-grid fallback
         penalty = np.float32(PENALTY * (p.neutral_cost + p.cost_factor))
         pen = np.full((H * k, W * k), penalty, dtype=np.float32)
-        pen[:h, :w] = np.where(blocked, penalty, costs)
+        pen[:h, :w] = costs            # in place: np.where would allocate a float64 copy of the map
+        pen[:h, :w][blocked] = penalty
         coarse = cv2.resize(pen, (W, H), interpolation=cv2.INTER_AREA).astype(np.float64)
-        full = np.ones((H * k, W * k), dtype=np.float32)
+        full = np.ones((H * k, W * k), dtype=bool)       # 1 byte/cell (a float32 area resize took 4)
         full[:h, :w] = blocked
-        coarse[cv2.resize(full, (W, H), interpolation=cv2.INTER_AREA) > 1.0 - 1e-6] = np.inf
+        coarse[full.reshape(H, k, W, k).all(axis=(1, 3))] = np.inf
         cs, cg = (s[0] // k, s[1] // k), (g[0] // k, g[1] // k)
         coarse[cs] = min(coarse[cs], costs[s])
         coarse[cg] = min(coarse[cg], costs[g])
@@ -296,8 +297,10 @@ def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
     hb, wb = ok.shape
     ids = np.flatnonzero(ok)
     n = ids.size
-    node = np.full(hb * wb, -1, dtype=np.int64)
-    node[ids] = np.arange(n)
+    # int32 node ids (csgraph's own index type): the table spans the corridor's bounding box, which is
+    # the whole map for a diagonal route
+    node = np.full(hb * wb, -1, dtype=np.int32)
+    node[ids] = np.arange(n, dtype=np.int32)
     node = node.reshape(hb, wb)
     sr, sc, gr, gc = s[0] - r0, s[1] - c0, g[0] - r0, g[1] - c0
     if not (0 <= sr < hb and 0 <= sc < wb and 0 <= gr < hb and 0 <= gc < wb) or node[sr, sc] < 0 \
@@ -309,7 +312,7 @@ def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
     for dr, dc in _OFFSETS:
         nr, nc = rr + dr, cc + dc
         inb = (nr >= 0) & (nr < hb) & (nc >= 0) & (nc < wb)
-        nb = np.full(n, -1, dtype=np.int64)
+        nb = np.full(n, -1, dtype=np.int32)
         nb[inb] = node[nr[inb], nc[inb]]
         keep = nb >= 0
         i = np.nonzero(keep)[0]

@@ -1,23 +1,29 @@
 """ROS glue shared by the navigation nodes (imports rospy/tf2): timers that survive time jumping
-back, planar tf lookups (:class:`PlanarTf`)."""
+back and exceptions (:func:`periodic`), a ``diagnostics`` publisher (:class:`Diagnostics`), planar
+tf lookups (:class:`PlanarTf`)."""
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from typing import Any
 
 import rospy
 import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from chefbot_common.geometry import Pose2D
+from chefbot_navigation.health import TaskHealth
 from chefbot_navigation.navigator import pose_age_fault
 from chefbot_navigation.ros_io import transform_to_pose2d
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
 
-def periodic(rate_hz: float, fn: Callable[[], None]) -> threading.Thread:
+def periodic(rate_hz: float, fn: Callable[[], None], health: TaskHealth | None = None) -> threading.Thread:
     """Call ``fn`` at ``rate_hz`` (ROS time) in a daemon thread that survives time jumping back
-    (a rospy.Timer thread dies with ROSTimeMovedBackwardsException)."""
+    (a rospy.Timer thread dies with ROSTimeMovedBackwardsException) and exceptions of ``fn``:
+    those are counted in ``health`` (``thread.health``), logged (throttled) and the loop goes on."""
+    health = health or TaskHealth(getattr(fn, "__name__", "periodic task"))
 
     def loop() -> None:
         rate = rospy.Rate(rate_hz)
@@ -29,11 +35,63 @@ def periodic(rate_hz: float, fn: Callable[[], None]) -> threading.Thread:
                 continue
             except rospy.ROSInterruptException:
                 return
-            fn()
+            run_guarded(fn, health)
 
-    thread = threading.Thread(target=loop, daemon=True)
+    thread = threading.Thread(target=loop, daemon=True, name=health.name)
+    thread.health = health
     thread.start()
     return thread
+
+
+def run_guarded(fn: Callable[[], None], health: TaskHealth) -> bool:
+    """Call ``fn``; an exception (MemoryError included) is counted and logged, not raised. True if it ran."""
+    try:
+        fn()
+    except Exception as exc:   # noqa: BLE001 -- a background task must survive anything fn raises
+        line = health.failed(exc, rospy.get_time())
+        if line is not None:
+            rospy.logerr(line)
+        return False
+    health.ok()
+    return True
+
+
+StatusFn = Callable[[float], tuple[int, str, dict[str, Any]]]
+
+
+class Diagnostics:
+    """Publishes ``diagnostics`` (diagnostic_msgs/DiagnosticArray) at ``rate_hz``: one status per
+    registered source, each a function of the time (s) returning (level, message, key values)."""
+
+    def __init__(self, prefix: str, rate_hz: float = 1.0) -> None:
+        self.prefix = prefix
+        self.sources: list[tuple[str, StatusFn]] = []
+        self.pub = rospy.Publisher("diagnostics", DiagnosticArray, queue_size=5)
+        self.health = TaskHealth(f"{prefix}: diagnostics")
+        self.add("diagnostics publisher", self.health.status)
+        self.rate_hz = rate_hz
+
+    def add(self, name: str, fn: StatusFn) -> None:
+        """Report ``fn``'s status under ``<prefix>: <name>``."""
+        self.sources.append((name, fn))
+
+    def add_task(self, thread: threading.Thread) -> None:
+        """Report the health of a :func:`periodic` thread."""
+        self.add(thread.health.name, thread.health.status)
+
+    def start(self) -> threading.Thread:
+        return periodic(self.rate_hz, self.publish, self.health)
+
+    def publish(self) -> None:
+        now = rospy.get_time()
+        msg = DiagnosticArray()
+        msg.header.stamp = rospy.Time.now()
+        for name, fn in self.sources:
+            level, text, values = fn(now)
+            msg.status.append(DiagnosticStatus(level=level, name=f"{self.prefix}: {name}", message=text,
+                                               hardware_id=rospy.get_name(),
+                                               values=[KeyValue(str(k), str(v)) for k, v in values.items()]))
+        self.pub.publish(msg)
 
 
 def revive_action_status_timer(server, who: str) -> None:

@@ -1,0 +1,97 @@
+"""Narrow passages with the URDF footprint on a perfect unicycle (pure, no ROS): the cafe's aisles
+(0.50-0.90 m) are all reached without the robot's collision bodies touching a table, within 1.5x the
+time-optimal limit; a passage narrower than the robot is refused with where, within 10 s (sim time)
+of the robot reaching it; replanning stays within planner_frequency while blocked."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from unicycle_nav import Run, slot_map
+
+from chefbot_common.geometry import Pose2D
+from chefbot_common.map_io import load_map
+from chefbot_common.tables import load_tables
+from chefbot_navigation.navigator import Goal
+from chefbot_navigation.time_limit import MotionLimits, profile_limit
+
+PKG = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def urdf() -> str:
+    return pytest.importorskip("chefbot_description.model").expand_xacro()
+
+
+def test_cafe_every_table_reached_without_contact_within_limit(urdf: str) -> None:
+    occ = load_map(PKG / "maps" / "cafe_map.yaml")
+    tables = load_tables(PKG / "maps" / "cafe_tables.yaml")
+    home = tables["home"]
+    run = Run(occ, urdf, Pose2D(home.x, home.y, home.yaw))
+    lim = MotionLimits(run.ctrl.max_vel_x, run.ctrl.max_vel_theta, run.ctrl.acc_lim_x, run.ctrl.acc_lim_x,
+                       run.ctrl.acc_lim_theta)
+    for name in [n for n in tables if n != "home"] + ["home"]:
+        tg = tables[name]
+        start_yaw = run.pose.yaw
+        res, took, touches, events, _, first = run.go(Goal(tg.x, tg.y, tg.yaw))
+        assert res.outcome == "succeeded", f"{name}: {res.text}; {events}"
+        assert touches == 0, f"{name}: the robot's collision bodies touched the map {touches} times"
+        limit = profile_limit(first.points, lim, start_yaw, tg.yaw)
+        assert took <= 1.5 * limit, f"{name}: {took:.1f} s > 1.5 x {limit:.1f} s"
+        assert all(a != b for a, b in zip(events, events[1:], strict=False)), events   # each change once
+
+
+@pytest.mark.parametrize("width", [0.38, 0.45])
+def test_passage_a_little_wider_than_the_robot_is_taken(urdf: str, width: float) -> None:
+    run = Run(slot_map(width), urdf, Pose2D(1.0, 1.2, 0.0))
+    res, _, touches, events, _, _ = run.go(Goal(5.0, 1.5, 0.0))
+    assert res.outcome == "succeeded", f"{width} m: {res.text}; {events}"
+    assert touches == 0
+
+
+@pytest.mark.parametrize("width", [0.33, 0.35])
+def test_passage_narrower_than_the_robot_is_refused_with_where_within_10s(urdf: str, width: float) -> None:
+    run = Run(slot_map(width), urdf, Pose2D(1.0, 1.2, 0.0))
+    res, took, touches, events, plans, _ = run.go(Goal(5.0, 1.5, 0.0))
+    assert res.outcome == "aborted" and "aisle narrower than the robot at (2.5" in res.text, res.text
+    blocked = [e for e in events if e.startswith("blocked: passage narrower than the robot at")]
+    assert blocked, events
+    assert touches == 0
+    # the robot reaches the passage mouth at ~1.5 m / 0.35 m/s; the abort follows within 10 s of that
+    assert took <= 1.5 / 0.35 + 10.0, f"refused after {took:.1f} s"
+    # planner_frequency (1 Hz) bounds replanning while blocked (it used to replan every control cycle)
+    span = plans[-1] - plans[0] if len(plans) > 1 else 1.0
+    assert (len(plans) - 1) / span <= 1.0 + 1e-6, plans
+
+
+def test_too_narrow_for_the_inscribed_circle_is_refused_at_once(urdf: str) -> None:
+    run = Run(slot_map(0.30), urdf, Pose2D(1.0, 1.2, 0.0))
+    res, took, _, events, _, _ = run.go(Goal(5.0, 1.5, 0.0))
+    assert res.outcome == "aborted" and "unreachable" in res.text and took <= 1.0
+    assert events[0] == "planning" and events[-1].startswith("aborted: Failed to plan")
+
+
+def test_turning_on_the_spot_is_checked_with_the_footprint(urdf: str) -> None:
+    """In a 0.40 m passage the robot (0.30 m wide) fits straight but its camera bar (0.223 m from the
+    centre) cannot swing round; in the open it can."""
+    run = Run(slot_map(0.40), urdf, Pose2D(3.0, 1.5, 0.0))
+    ctrl = run.nav.controller
+    inside = run.layers.window(3.0, 1.5, 3.0, 3.0)
+    assert ctrl.poses_collide(np.array([3.0]), np.array([1.5]), np.array([0.0]), inside)[0] is False
+    hit, where = ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside)
+    assert hit and abs(where[1] - 1.5) > 0.19
+    open_area = run.layers.window(1.2, 1.5, 3.0, 3.0)
+    assert ctrl.rotation_collides(Pose2D(1.2, 1.5, 0.0), 2 * math.pi, open_area) == (False, None)
+    ctrl.set_footprint(None)     # a round robot: turning sweeps nothing new
+    assert ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside) == (False, None)
+
+
+def test_plan_keeps_to_the_middle_of_an_aisle(urdf: str) -> None:
+    """The inflation gradient (NavFn's idea) centres the path in a 0.60 m passage (y 1.2..1.8)."""
+    run = Run(slot_map(0.60), urdf, Pose2D(1.0, 1.0, 0.0))
+    plan = run.nav.plan_between((1.0, 1.0), Goal(5.0, 2.0, None))
+    inside = plan.points[(plan.points[:, 0] > 2.55) & (plan.points[:, 0] < 3.45)]
+    assert len(inside) > 10
+    assert np.max(np.abs(inside[:, 1] - 1.5)) <= 0.03, inside[:, 1]
