@@ -31,10 +31,12 @@ import numpy as np
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim.bullet import BulletSim
+from chefbot_sim.camera import RgbdRenderer, RgbFrame
 from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.world import Shape, World
+from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
@@ -54,9 +56,10 @@ class SimOptions:
     joint_state_rate: float = 50.0
     ground_truth_rate: float = 50.0
     bumper_rate: float = 20.0
-    rgb_rate: float = 2.0              # TinyRenderer is ~2 ms per 80×60 frame
-    rgb_width: int = 80
-    rgb_height: int = 60
+    rgb_rate: float = 10.0             # TinyRenderer, only while subscribed (chefbot_sim.camera)
+    rgb_width: int = 320
+    rgb_height: int = 240
+    registered_stride: int = 2         # px step of camera/depth_registered/points over the RGB image
     depth_band_rows: int = 10          # rows around the centre cast exactly (depth_to_scan's scan_height)
     depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
     depth_coarse_stride: int = 8       # px between coarse samples outside the band
@@ -83,6 +86,8 @@ class SimOptions:
             raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
         if self.rgb_width < 1 or self.rgb_height < 1:
             raise SimConfigError("rgb_width and rgb_height must be >= 1")
+        if self.registered_stride < 1:
+            raise SimConfigError(f"registered_stride must be >= 1, got {self.registered_stride}")
 
 
 @dataclass
@@ -114,6 +119,10 @@ class CameraModel:
         p = [self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
         return {"width": self.width, "height": self.height, "K": k, "P": p, "D": [0.0] * 5,
                 "distortion_model": "plumb_bob"}
+
+    def pinhole(self) -> Pinhole:
+        """The same intrinsics as chefbot_vision's (frozen) Pinhole."""
+        return Pinhole(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
 
 
 def load_params(urdf_xml: str) -> Any:
@@ -202,6 +211,12 @@ class Simulator:
         cam = p.depth_camera
         self.depth_camera = CameraModel.from_fov(cam.width, cam.height, cam.horizontal_fov)
         self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
+        # rendered images and clouds (chefbot_sim.camera); dense_depth: depth by rendering every pixel
+        # instead of band + coarse rays (the node sets it while camera/depth/points is subscribed)
+        self.rgbd = RgbdRenderer(self.bullet, self.rgb_camera.pinhole(), self.depth_camera.pinhole(), cam.rgb_frame,
+                                 cam.depth_frame, cam.min_range, cam.max_range)
+        self.dense_depth = False
+        self.last_rgb: RgbFrame | None = None
         self._spawned: list[Shape] = []
         self._caster = RayCaster(world.shapes)
         self._build_depth_rays()
@@ -454,6 +469,8 @@ class Simulator:
         nearest coarse sample; with none they are NaN; with full every pixel is exact.
         """
         cam, p = self.depth_camera, self.params.depth_camera
+        if self.dense_depth:
+            return self._depth_noise_and_range(self.rgbd.render_depth())
         pos, rot = self.bullet.frame_pose(p.depth_frame)
         img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
         t_all = self._caster.cast(pos, self._dirs_all @ rot.T, p.max_range)
@@ -470,17 +487,20 @@ class Simulator:
             mask = np.ones(cam.height, bool)
             mask[self._band_rows] = False
             img[mask] = fill[mask]
+        return self._depth_noise_and_range(img)
+
+    def _depth_noise_and_range(self, img: np.ndarray) -> np.ndarray:
+        p = self.params.depth_camera
         if p.noise_stddev > 0:  # float32 normals: ~2x cheaper for 19 200 pixels
             img += self.rng.standard_normal(img.shape, dtype=np.float32) * np.float32(p.noise_stddev)
         img[~((img >= p.min_range) & (img <= p.max_range))] = np.nan
         return img
 
     def rgb_image(self) -> np.ndarray:
-        """uint8 (H, W, 3) colour image from the RGB optical frame (TinyRenderer)."""
-        cam, p = self.rgb_camera, self.params.depth_camera
-        pos, rot = self.bullet.frame_pose(p.rgb_frame)
-        img, _ = self.bullet.render(cam.width, cam.height, pos, rot, cam.fy, 0.05, p.max_range, rgb=True)
-        return img
+        """uint8 (H, W, 3) colour image from the RGB optical frame (TinyRenderer); the render's
+        registered depth stays in ``last_rgb`` (for camera/depth_registered/points)."""
+        self.last_rgb = self.rgbd.render_rgb()
+        return self.last_rgb.image
 
     # ------------------------------------------------------------ world edits
     def _rebuild_caster(self) -> None:
