@@ -22,7 +22,7 @@ from chefbot_common.params import read_config
 from chefbot_navigation.costmap import LayeredCostmap
 from chefbot_navigation.pointcloud_layer import CloudLayerParams, PointCloudLayer
 from chefbot_navigation.ros_util import TF_ERRORS
-from chefbot_vision.cloud import CloudError
+from chefbot_vision.cloud import CloudError, transform_points
 from chefbot_vision.ros_io import cloud_xyz
 
 
@@ -60,7 +60,8 @@ class CloudInput:
             return
         q, tr = tf.transform.rotation, tf.transform.translation
         origin = np.array([tr.x, tr.y, tr.z])
-        pts = pts[np.isfinite(pts).all(axis=1)].astype(np.float64) @ quaternion_matrix((q.x, q.y, q.z, q.w))[:3, :3].T + origin
+        rot = quaternion_matrix((q.x, q.y, q.z, q.w))[:3, :3]
+        pts = transform_points(pts, rot, origin)
         with self.lock:
             layers = self.layers()
             if layers is None:
