@@ -440,7 +440,9 @@ class Simulator:
     def _build_depth_rays(self) -> None:
         cam = self.depth_camera
         band = self.options.depth_band_rows
-        first = max(0, int(round(cam.cy - (band - 1) / 2.0)))
+        # the rows depth_to_scan reads (depthimage_to_laserscan's offset = int(cy - scan_height / 2)):
+        # one row off, its top row was coarse-filled from 2 rows higher and saw overhangs it must not
+        first = max(0, int(cam.cy - band // 2))
         self._band_rows = np.arange(first, min(cam.height, first + band))
         mode = self.options.depth_fill
         stride = self.options.depth_coarse_stride
