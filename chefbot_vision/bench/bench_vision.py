@@ -75,10 +75,10 @@ def run(quick: bool = False) -> list[dict]:
         rows.append(_row("camera: depth 160x120 rendered in full (while camera/depth/points is subscribed)",
                          "ms/frame", _median_ms(sim.depth_image, n), None, None))
         depth = sim.depth_image()
-        cam = sim.depth_camera.pinhole()
+        cam = sim.depth_camera
         rows.append(_row("camera: depth -> XYZ cloud + PointCloud2 (19 200 points)", "ms/frame",
                          _median_ms(lambda: cloud_msg(depth_to_points(depth, cam), None, "f"), n), None, None))
-        frame, rcam = sim.last_rgb, sim.rgb_camera.pinhole()
+        frame, rcam = sim.last_rgb, sim.rgb_camera
         rows.append(_row("camera: registered XYZRGB cloud + PointCloud2 (stride 2: 19 200 points)", "ms/frame",
                          _median_ms(lambda: _registered_msg(frame, rcam), n), None, None))
         # the layer: the camera's cloud into the hotel map (as move_base does it, decimation 2)

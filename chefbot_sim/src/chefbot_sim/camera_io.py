@@ -37,12 +37,12 @@ class CloudTopics:
 
     def on_depth(self, depth: np.ndarray, stamp: Any) -> None:
         if self.want_points:
-            pts = depth_to_points(depth, self.sim.depth_camera.pinhole(), min_range=self.cutoff)
+            pts = depth_to_points(depth, self.sim.depth_camera, min_range=self.cutoff)
             self.pub_points.publish(cloud_msg(pts, stamp, self.depth_frame))
 
     def on_rgb(self, stamp: Any) -> None:
         frame = self.sim.last_rgb
         if self.want_registered and frame is not None:
             stride = self.sim.options.registered_stride
-            pts, colours = registered_cloud(frame, self.sim.rgb_camera.pinhole(), stride)
+            pts, colours = registered_cloud(frame, self.sim.rgb_camera, stride)
             self.pub_registered.publish(cloud_msg(pts, stamp, self.rgb_frame, colours))

@@ -90,16 +90,10 @@ class SimOptions:
             raise SimConfigError(f"registered_stride must be >= 1, got {self.registered_stride}")
 
 
-@dataclass
-class CameraModel:
-    """Pinhole intrinsics (ROS convention: integer pixel coordinates are pixel centres)."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
+@dataclass(frozen=True)
+class CameraModel(Pinhole):
+    """Pinhole intrinsics (chefbot_vision's Pinhole; ROS convention: integer pixel coordinates are pixel
+    centres) with the simulator's helpers."""
 
     @classmethod
     def from_fov(cls, width: int, height: int, horizontal_fov: float) -> CameraModel:
@@ -119,10 +113,6 @@ class CameraModel:
         p = [self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
         return {"width": self.width, "height": self.height, "K": k, "P": p, "D": [0.0] * 5,
                 "distortion_model": "plumb_bob"}
-
-    def pinhole(self) -> Pinhole:
-        """The same intrinsics as chefbot_vision's (frozen) Pinhole."""
-        return Pinhole(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
 
 
 def load_params(urdf_xml: str) -> Any:
@@ -213,7 +203,7 @@ class Simulator:
         self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
         # rendered images and clouds (chefbot_sim.camera); dense_depth: depth by rendering every pixel
         # instead of band + coarse rays (the node sets it while camera/depth/points is subscribed)
-        self.rgbd = RgbdRenderer(self.bullet, self.rgb_camera.pinhole(), self.depth_camera.pinhole(), cam.rgb_frame,
+        self.rgbd = RgbdRenderer(self.bullet, self.rgb_camera, self.depth_camera, cam.rgb_frame,
                                  cam.depth_frame, cam.min_range, cam.max_range)
         self.dense_depth = False
         self.last_rgb: RgbFrame | None = None

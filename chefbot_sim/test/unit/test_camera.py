@@ -47,7 +47,7 @@ def test_registered_depth_and_cloud_match_the_scene(sim):
     mid = cam.height // 2
     # the wall's near face is 2.9 m from the base; the rgb camera sits ~DEPTH_X ahead
     assert frame.depth[mid - 20, cam.width // 2] == pytest.approx(2.9 - DEPTH_X, abs=0.02)
-    pts, colours = registered_cloud(frame, cam.pinhole(), 2)
+    pts, colours = registered_cloud(frame, cam, 2)
     assert pts.shape == (120, 160, 3) and colours.shape == (120, 160, 3)
     red = (colours[..., 0] > 150) & (colours[..., 2] < 80) & np.isfinite(pts[..., 2])
     # the red box's points: left of the optical axis (x < 0 in the optical frame), 1.65 m ahead of the base
@@ -80,7 +80,7 @@ def test_depth_cloud_of_the_wall(sim):
         depth = sim.depth_image()
     finally:
         sim.dense_depth = False
-    pts = depth_to_points(depth, sim.depth_camera.pinhole())
+    pts = depth_to_points(depth, sim.depth_camera)
     wall = pts[np.abs(pts[..., 0]) < 0.1]               # the column strip between the boxes
     wall = wall[np.isfinite(wall).all(axis=1) & (wall[:, 1] < 0.1)]   # at or above the camera
     assert np.median(wall[:, 2]) == pytest.approx(2.9 - DEPTH_X, abs=0.02)
