@@ -102,3 +102,15 @@ def test_transform_points_drops_nan():
     rot = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]], float)
     out = transform_points(pts, rot, np.array([0.0, 0.0, 0.5]))
     np.testing.assert_allclose(out, [[0.0, 1.0, 0.5]])
+
+
+def test_pinhole_agrees_with_image_geometry():
+    """The book-era PinholeCameraModel (Debian's python3-image-geometry) gives the same rays."""
+    image_geometry = pytest.importorskip("image_geometry")
+    model = image_geometry.PinholeCameraModel()
+    model.fromCameraInfo(camera_info(160, 120, 140.0, 141.0, 79.5, 59.5, "cam"))
+    cam = Pinhole(160, 120, 140.0, 141.0, 79.5, 59.5)
+    pts = depth_to_points(np.full((120, 160), 1.0, np.float32), cam)
+    for u, v in ((0, 0), (100, 30), (159, 119)):
+        ray = np.array(model.projectPixelTo3dRay((u, v)))
+        np.testing.assert_allclose(pts[v, u], ray / ray[2], rtol=1e-5)
