@@ -87,9 +87,3 @@ def camera_info(width: int, height: int, fx: float, fy: float, cx: float, cy: fl
     m.P = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
     return m
 
-
-def check_info_matches(info: CameraInfo, width: int, height: int, what: str) -> str:
-    """'' when camera_info's size matches the image, else the mismatch in words."""
-    if (info.width, info.height) != (width, height):
-        return f"{what}: camera_info is {info.width} x {info.height} but the image is {width} x {height}"
-    return ""

@@ -4,7 +4,7 @@ import pytest
 from sensor_msgs import point_cloud2
 
 from chefbot_vision.cloud import CloudError, Pinhole, depth_to_points, transform_points
-from chefbot_vision.ros_io import camera_info, check_info_matches, cloud_msg, cloud_xyz, pinhole_from_info
+from chefbot_vision.ros_io import camera_info, cloud_msg, cloud_xyz, pinhole_from_info
 
 CAM = Pinhole(160, 120, 140.0, 140.0, 79.5, 59.5)
 
@@ -93,8 +93,9 @@ def test_cloud_xyz_rejects_bad_messages():
 def test_camera_info_helpers():
     info = camera_info(160, 120, 140.0, 140.0, 79.5, 59.5, "cam")
     assert pinhole_from_info(info) == CAM
-    assert check_info_matches(info, 160, 120, "x") == ""
-    assert "camera_info is 160 x 120 but the image is 320 x 240" in check_info_matches(info, 320, 240, "x")
+    # a depth image whose size is not camera_info's is refused, naming both sizes
+    with pytest.raises(CloudError, match="depth image is 320 x 240 but camera_info says 160 x 120"):
+        depth_to_points(np.zeros((240, 320), np.float32), pinhole_from_info(info))
 
 
 def test_transform_points_drops_nan():
