@@ -234,19 +234,19 @@ class MoveBaseTest(unittest.TestCase):
         cancel = rospy.Publisher("move_base/cancel", GoalID, queue_size=10)
         goal_pub = rospy.Publisher("move_base/goal", MoveBaseActionGoal, queue_size=10)
         try:
-            wait_until(lambda: cancel.get_num_connections() > 0 and goal_pub.get_num_connections() > 0
+            wait_for(lambda: cancel.get_num_connections() > 0 and goal_pub.get_num_connections() > 0
                        and subs[1].get_num_connections() > 0, 30.0, "move_base topics connected")
             gid = f"overtaken_{os.getpid()}"
             cancel.publish(GoalID(id=gid))  # stamp 0
-            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLING, 30.0, "cancel stored")
+            wait_for(lambda: statuses.get(gid) == GoalStatus.RECALLING, 30.0, "cancel stored")
             goal_pub.publish(MoveBaseActionGoal(goal_id=GoalID(id=gid), goal=make_goal(1.0, 0.0)))
-            wait_until(lambda: statuses.get(gid) == GoalStatus.RECALLED, 30.0, "goal recalled")
+            wait_for(lambda: statuses.get(gid) == GoalStatus.RECALLED, 30.0, "goal recalled")
             cancel.publish(GoalID(id=gid))                       # the same cancel again
             cancel.publish(GoalID(stamp=rospy.Time(0, 1)))       # everything stamped before 1 ns: only it
             # the service logs after the cancels were handled (one rosout stream, in order)
             rospy.wait_for_service("move_base/clear_costmaps", 30.0)
             rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
-            wait_until(lambda: any("costmaps cleared" in m for m in logs), 30.0, "move_base log after the cancels")
+            wait_for(lambda: any("costmaps cleared" in m for m in logs), 30.0, "move_base log after the cancels")
             self.assertFalse([m for m in logs if "uninitialized" in m], logs)
         finally:
             for sub in subs:

@@ -25,6 +25,18 @@ package), re-implemented vectorised from its documented behaviour:
   16UC1 value 0 means "no data" and becomes range 0 (NaN in practice,
   because 0 < range_min).
 
+Speed (``make bench``): everything that depends only on the camera or the
+config (column tangents, the column -> bin segments, the squared-range
+bounds) is computed once and cached; per frame the band's squared range
+``s = x^2 + z^2`` is compared against bounds chosen so that
+``lo2 <= s <= hi2`` holds exactly when ``range_min <= sqrt(s) <= range_max``
+in floating point (sqrt is correctly rounded and monotonic, so the bounds are
+found once with ``nextafter``); the square root then runs on one value per
+column instead of per pixel, and bins are filled with one ``reduceat`` over
+the (monotonic) column -> bin map.  The +/-inf rule only runs when some bin
+got no in-range value.  Results are bit-identical to
+:func:`depth_to_scan_reference` (unit tests and the bench check it).
+
 Intrinsics come from ``P`` (rectified image, as upstream) or ``K`` when
 ``P`` is all zeros; lens distortion is not modelled (depth images from the
 Astra/Kinect drivers and our simulator are published rectified).
@@ -33,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -92,6 +105,7 @@ class Scan:
     ranges: np.ndarray      # float32, one per image column (m)
 
 
+@lru_cache(maxsize=8)
 def scan_angles(cam: Intrinsics) -> tuple[float, float, float]:
     """(angle_min, angle_max, angle_increment) in rad, rounded to float32 like the message."""
     angle_max = math.atan2(cam.cx, cam.fx)                       # column 0
@@ -113,6 +127,54 @@ def column_bins(cam: Intrinsics) -> np.ndarray:
     th = -np.arctan2((u - cam.cx) / cam.fx, 1.0)
     # int() in C truncates toward zero; the value is >= 0 up to rounding.
     return np.clip(np.trunc((th - angle_min) / inc).astype(np.int64), 0, cam.width - 1)
+
+
+@dataclass(frozen=True)
+class _ColumnPlan:
+    """Per-camera constants of the fast path."""
+
+    tan: np.ndarray          # (u - cx) / fx per column, float64
+    order: np.ndarray        # columns sorted by bin (bins fall with u: reversed columns)
+    starts: np.ndarray       # first position in ``order`` of each occupied bin
+    occupied: np.ndarray     # the occupied bins, in the same order
+
+
+@lru_cache(maxsize=8)
+def _column_plan(cam: Intrinsics) -> _ColumnPlan:
+    bins = column_bins(cam)
+    order = np.argsort(bins, kind="stable")
+    sorted_bins = bins[order]
+    starts = np.flatnonzero(np.r_[True, sorted_bins[1:] != sorted_bins[:-1]])
+    tan = (np.arange(cam.width, dtype=np.float64) - cam.cx) / cam.fx
+    for a in (tan, order, starts):
+        a.setflags(write=False)
+    occupied = sorted_bins[starts]
+    occupied.setflags(write=False)
+    return _ColumnPlan(tan, order, starts, occupied)
+
+
+def _sqrt_bound(limit: float, lower: bool) -> float:
+    """The squared-range bound equivalent to comparing ``sqrt(s)`` with ``limit`` (m).
+
+    lower: smallest s with ``sqrt(s) >= limit``; else: largest s with ``sqrt(s) <= limit``.
+    """
+    s = limit * limit
+    if lower:
+        while s > 0.0 and math.sqrt(np.nextafter(s, 0.0)) >= limit:
+            s = float(np.nextafter(s, 0.0))
+        while math.sqrt(s) < limit:
+            s = float(np.nextafter(s, math.inf))
+    else:
+        while math.sqrt(np.nextafter(s, math.inf)) <= limit:
+            s = float(np.nextafter(s, math.inf))
+        while math.sqrt(s) > limit:
+            s = float(np.nextafter(s, 0.0))
+    return s
+
+
+@lru_cache(maxsize=8)
+def _range_bounds(range_min: float, range_max: float) -> tuple[float, float]:
+    return _sqrt_bound(range_min, lower=True), _sqrt_bound(range_max, lower=False)
 
 
 def _ranges_of_band(band: np.ndarray, cam: Intrinsics) -> np.ndarray:
@@ -143,15 +205,34 @@ def depth_to_scan(depth: np.ndarray, cam: Intrinsics, cfg: ScanConfig) -> Scan:
     ranges = np.full(w, np.nan, dtype=np.float32)
     if r1 <= r0:
         return Scan(angle_min, angle_max, inc, ranges)
-    r = _ranges_of_band(depth[r0:r1], cam)
-    bins = column_bins(cam)
+    band = depth[r0:r1]
+    plan = _column_plan(cam)
+    lo2, hi2 = _range_bounds(cfg.range_min, cfg.range_max)
 
-    # 1. smallest in-range finite value: reduce rows first, then columns into bins.
-    with np.errstate(invalid="ignore"):
-        ok = np.isfinite(r) & (r >= cfg.range_min) & (r <= cfg.range_max)
-    col_min = np.where(ok, r, np.inf).min(axis=0)
+    # 1. smallest in-range finite value: squared ranges s, reduce rows, then columns into bins.
+    #    Only s < lo2 needs masking: a value above hi2 can only win where nothing is in range,
+    #    and `found` below tells those apart; NaN (no data, 0 * inf) is skipped by fmin.
+    with np.errstate(invalid="ignore", over="ignore"):
+        z = band * 0.001 if band.dtype == np.uint16 else band.astype(np.float64)   # uint16 0 -> range 0
+        s = np.multiply(z, plan.tan)
+        np.multiply(s, s, out=s)
+        np.multiply(z, z, out=z)
+        s += z                                    # x^2 + z^2, the reference's expression
+    # the +/-inf rule below needs an infinite range somewhere: an inf depth, or (float64 only)
+    # a finite depth so large that its range overflows
+    may_have_inf = band.dtype != np.uint16 and (
+        bool(np.isinf(band).any()) or (band.dtype == np.float64 and bool(np.isinf(s).any())))
+    if lo2 > 0.0:
+        np.copyto(s, np.inf, where=s < lo2)
+    best2 = np.fmin.reduceat(np.fmin.reduce(s, axis=0)[plan.order], plan.starts)
+    found = best2 <= hi2
+    ranges[plan.occupied] = np.sqrt(np.where(found, best2, np.nan))
+    if found.all() or not may_have_inf:   # bins without an in-range value stay NaN
+        return Scan(angle_min, angle_max, inc, ranges)
     best = np.full(w, np.inf)
-    np.minimum.at(best, bins, col_min)
+    best[plan.occupied[found]] = ranges[plan.occupied[found]]
+    r = _ranges_of_band(band, cam)
+    bins = column_bins(cam)
 
     # 2. bins without one keep the last +/-inf in row-major order.
     is_inf = np.isinf(r)
@@ -163,7 +244,7 @@ def depth_to_scan(depth: np.ndarray, cam: Intrinsics, cfg: ScanConfig) -> Scan:
     has_inf = best_key >= 0
     inf_val = np.where(has_inf, r.reshape(-1)[np.maximum(best_key, 0)], np.nan)
 
-    ranges[:] = np.where(np.isfinite(best), best, inf_val)
+    ranges[:] = np.where(np.isfinite(best), ranges, inf_val)
     return Scan(angle_min, angle_max, inc, ranges)
 
 

@@ -47,8 +47,11 @@ class LaunchpadConfig:
     checksum_commands: bool = True
     battery_empty_voltage: float = 11.0  # V, 0 %
     battery_full_voltage: float = 12.7   # V, 100 %
+    battery_low: float = 0.2            # fraction: WARN diagnostic at or below
+    battery_critical: float = 0.05      # fraction: ERROR diagnostic at or below
     ultrasonic_frame_id: str = "ultrasonic_link"
     imu_frame_id: str = "gyro_link"
+    event_driven: bool = True           # write a wheel command when it arrives (False: only on the control timer)
 
     def __post_init__(self) -> None:
         if not self.port:
@@ -59,6 +62,9 @@ class LaunchpadConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be > 0, got {v!r}")
+        if not 0.0 <= self.battery_critical <= self.battery_low <= 1.0:
+            raise ValueError(f"need 0 <= battery_critical ({self.battery_critical}) <= battery_low "
+                             f"({self.battery_low}) <= 1")
         if not self.battery_full_voltage > self.battery_empty_voltage:
             raise ValueError(f"battery_full_voltage ({self.battery_full_voltage}) must exceed "
                              f"battery_empty_voltage ({self.battery_empty_voltage})")
@@ -80,6 +86,7 @@ LAUNCHPAD_PARAMS = {
     "max_wheel_speed": "~max_wheel_speed", "checksum_commands": "~checksum_commands",
     "battery_empty_voltage": "~battery_empty_voltage", "battery_full_voltage": "~battery_full_voltage",
     "ultrasonic_frame_id": "~ultrasonic_frame_id", "imu_frame_id": "~imu_frame_id",
+    "event_driven": "~event_driven", "battery_low": "~battery_low", "battery_critical": "~battery_critical",
 }
 
 
@@ -415,4 +422,19 @@ def link_status(core: LaunchpadCore, t: float, port: str, last_error: str,
     text = f"connected to {port}"
     if (core.stats.encoder_jumps or core.stats.encoder_resets) and core.clean_encoder_readings < settle_readings:
         return WARN, text + "; encoder counters jumped or reset (absorbed)"
+    return OK, text
+
+
+def battery_status(cfg: LaunchpadConfig, volts: float | None) -> tuple[int, str]:
+    """Diagnostic (level, message) of the battery from the board's last voltage (V), None = none yet."""
+    if volts is None:
+        return WARN, "no battery reading from the board yet"
+    if volts <= 0.5:
+        return WARN, f"battery not measured (board reports {volts:.2f} V)"
+    frac = cfg.battery_fraction(volts)
+    text = f"{volts:.2f} V, {frac * 100:.0f} %"
+    if frac <= cfg.battery_critical:
+        return ERROR, f"battery critical: {text}; return to the charger now"
+    if frac <= cfg.battery_low:
+        return WARN, f"battery low: {text}"
     return OK, text

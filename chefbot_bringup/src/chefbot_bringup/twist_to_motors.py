@@ -6,7 +6,9 @@ at ~5 Hz from ``move_base`` (200 ms apart); targets are published at
 last command, so one late or lost command does not stop the wheels (the
 book's 2 ticks = 40 ms did, 5 times a second).  On the tick the timeout
 expires a zero target is published once, so the PID stops the motor at
-once instead of waiting for its own timeout.
+once instead of waiting for its own timeout.  A new command is also
+published at once (:meth:`TwistToMotors.current`), so it does not wait up
+to one tick (20 ms) for the timer.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ class TwistToMotorsConfig:
     rate: float = 50.0              # output rate (Hz)
     timeout_ticks: int = 18         # output ticks to keep going after the last command
     max_wheel_speed: float = 0.377  # fastest wheel speed (m/s); 80 RPM x pi x 0.09 m
+    event_driven: bool = True       # publish a changed command at once (False: only on the tick)
 
     def __post_init__(self) -> None:
         for name in ("base_width", "rate", "max_wheel_speed"):
@@ -77,6 +80,17 @@ class TwistToMotors:
     def active(self) -> bool:
         return self._ticks_since_cmd < self.cfg.timeout_ticks
 
+    def current(self, t: float) -> tuple[float, float] | None:
+        """Wheel targets (m/s) for the command held now, at time ``t`` (s), without counting a tick.
+
+        Called when a command arrives so it goes out at once instead of on the
+        next tick; None while inactive.
+        """
+        if not self.active:
+            return None
+        v = self.v if self.limiter is None else self.limiter.limit(self.v, t)
+        return wheel_speeds(v, self.w, self.cfg.base_width, self.cfg.max_wheel_speed)
+
     def tick(self, t: float) -> tuple[float, float] | None:
         """One output tick at time ``t`` (s): wheel targets (m/s) to publish, or None."""
         if not self.active:
@@ -85,5 +99,4 @@ class TwistToMotors:
         if not self.active:
             self.v = self.w = 0.0
             return 0.0, 0.0
-        v = self.v if self.limiter is None else self.limiter.limit(self.v, t)
-        return wheel_speeds(v, self.w, self.cfg.base_width, self.cfg.max_wheel_speed)
+        return self.current(t)

@@ -25,6 +25,14 @@ Differences from the book's ``pid_velocity`` and why:
   the controller commands 0 and keeps its integrator reset instead of
   integrating the error of a wheel it cannot see (the book's wound up to
   full power).  It resumes from a fresh start when readings come back.
+* Event-driven as well as periodic: :meth:`WheelController.react` runs one
+  step at once when a new target arrives (the book waited for the next
+  30 Hz tick, up to 33 ms).  The integral uses the real time elapsed since
+  the previous step, so the integrated error over a period is the same as
+  with the timer alone; the derivative's ``dt`` is floored at half a loop
+  period so a step taken right after a tick gives no larger derivative kick
+  than the timer loop would.  React steps do not count as loop ticks for
+  ``timeout_ticks``.
 """
 from __future__ import annotations
 
@@ -53,6 +61,7 @@ class PidConfig:
     feed_forward: bool = True      # ~feed_forward, add target/max_speed*out_max to the output
     encoder_timeout: float = 0.2   # ~encoder_timeout, silence after which the stop bound applies (s)
     feedback_timeout: float = 0.5  # ~feedback_timeout, no encoder reading this long: command 0, no integration (s)
+    event_driven: bool = True      # ~event_driven, step at once on a new target (False: only on the loop tick)
     encoder: EncoderRange = field(default_factory=EncoderRange)
 
     def __post_init__(self) -> None:
@@ -156,7 +165,8 @@ class VelocityPid:
         error = target - measured
         deriv = 0.0
         if self._prev_error is not None and dt > 0.0:
-            deriv = (error - self._prev_error) / dt
+            # floor: an event step right after a timer step must not amplify the kick by 1/dt
+            deriv = (error - self._prev_error) / max(dt, 0.5 / cfg.rate)
         self._prev_error = error
         base = self.feed_forward(target) + cfg.kp * error + cfg.kd * deriv
         candidate = self.integral + cfg.ki * error * dt
@@ -218,15 +228,27 @@ class WheelController:
         self.estimator.add_reading(raw_ticks, t)
         self._t_reading = t
 
+    def react(self, t: float) -> WheelTick:
+        """Act on a target that just arrived, at time ``t`` (s), without waiting for the loop tick.
+
+        Same output rules as :meth:`tick` (zero target, stale feedback, idle),
+        but it does not count as a loop tick for ``timeout_ticks``.
+        """
+        return self._step(t, count_tick=False)
+
     def tick(self, t: float) -> WheelTick:
         """Run one loop iteration at time ``t`` (s)."""
+        return self._step(t, count_tick=True)
+
+    def _step(self, t: float, count_tick: bool) -> WheelTick:
         vel = self.estimator.velocity(t)
         # a reading "from the future" (time jumped back) counts as fresh; the estimator restarts
         self.feedback_stale = self._t_reading is None or t - self._t_reading > self.cfg.feedback_timeout
         if not self.active:
             self._t_last = None
             return WheelTick(vel, None)
-        self._ticks_since_target += 1
+        if count_tick:
+            self._ticks_since_target += 1
         if not self.active:
             # Timed out on this tick: stop the motor once, then stay quiet.
             self.pid.reset()

@@ -150,6 +150,49 @@ def test_identical_to_reference_on_random_images(seed, h):
     assert same(depth_to_scan(depth, cam, cfg).ranges, depth_to_scan_reference(depth, cam, cfg).ranges)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("range_min,range_max", [(0.45, 10.0), (0.0, 3.0), (0.3, 0.3000001)])
+def test_identical_to_reference_at_the_range_limits(dtype, range_min, range_max):
+    """Depths whose ray length falls on, just inside and just outside range_min/range_max:
+    the squared-range bounds of the fast path must agree with sqrt() compared to the limits."""
+    rng = np.random.default_rng(7)
+    cam = Intrinsics(fx=120.0, cx=63.5, cy=20.0, width=128, height=40)
+    tan = (np.arange(128) - cam.cx) / cam.fx
+    depth = np.empty((40, 128), dtype=dtype)
+    for v in range(40):
+        limit = range_min if v % 2 else range_max
+        z = limit / np.sqrt(1.0 + tan * tan)                 # ray length == limit, up to rounding
+        steps = rng.integers(-3, 4, 128)
+        depth[v] = np.nextafter(z.astype(dtype), np.where(steps > 0, np.inf, 0.0).astype(dtype))
+        depth[v][steps == 0] = z.astype(dtype)[steps == 0]
+    depth[5, :20] = np.inf                                 # some bins with no in-range value at all
+    cfg = ScanConfig(scan_height=40, range_min=range_min, range_max=range_max)
+    for h in (1, 3, 40):
+        cfg = ScanConfig(scan_height=h, range_min=range_min, range_max=range_max)
+        assert same(depth_to_scan(depth, cam, cfg).ranges, depth_to_scan_reference(depth, cam, cfg).ranges)
+
+
+def test_identical_to_reference_when_whole_columns_are_invalid():
+    depth = wall(3.0)
+    depth[:, :200] = np.inf              # beyond the far plane
+    depth[:, 200:260] = -np.inf
+    depth[:, 260:300] = np.nan
+    depth[:, 300:320] = 0.2              # too close
+    depth[235:240, 400:420] = np.inf     # inf rows above finite ones: the finite value still wins
+    assert same(depth_to_scan(depth, CAM, CFG).ranges, depth_to_scan_reference(depth, CAM, CFG).ranges)
+    nan_only = wall(3.0)
+    nan_only[:, :300] = np.nan           # no data, no inf: the fast path alone
+    assert same(depth_to_scan(nan_only, CAM, CFG).ranges, depth_to_scan_reference(nan_only, CAM, CFG).ranges)
+    huge = wall(3.0).astype(np.float64)
+    huge[237, :100] = 1e200              # finite depth whose range overflows to +inf
+    huge[:, 100:200] = np.nan
+    huge[238, 150] = 1e200
+    assert same(depth_to_scan(huge, CAM, CFG).ranges, depth_to_scan_reference(huge, CAM, CFG).ranges)
+    u16 = np.full((H, W), 3000, np.uint16)
+    u16[:, :300] = 0
+    assert same(depth_to_scan(u16, CAM, CFG).ranges, depth_to_scan_reference(u16, CAM, CFG).ranges)
+
+
 def test_shape_mismatch_rejected():
     with pytest.raises(ValueError, match="camera_info"):
         depth_to_scan(np.zeros((10, 10), np.float32), CAM, CFG)

@@ -9,8 +9,10 @@ from chefbot_bringup.launchpad import (
     OK,
     WARN,
     EncoderContinuity,
+    LaunchpadConfig,
     LaunchpadCore,
     LineAssembler,
+    battery_status,
     link_status,
     wrap_int32,
 )
@@ -346,3 +348,20 @@ def test_a_real_jump_is_still_caught_on_board_time_and_after_a_reopen() -> None:
     assert core.stats.encoder_jumps == 1
     published = [extra[:2] for msg, extra in results if isinstance(msg, proto.Encoders)]
     assert published[-1][0] - published[0][0] == 300
+
+
+def test_battery_diagnostic_levels():
+    cfg = LaunchpadConfig(battery_empty_voltage=11.0, battery_full_voltage=13.0, battery_low=0.2,
+                          battery_critical=0.05)
+    assert battery_status(cfg, None)[0] == WARN
+    assert battery_status(cfg, 0.0)[0] == WARN                 # board without a divider
+    assert battery_status(cfg, 12.5) == (OK, "12.50 V, 75 %")
+    level, text = battery_status(cfg, 11.3)
+    assert level == WARN and "battery low" in text and "15 %" in text
+    level, text = battery_status(cfg, 11.05)
+    assert level == ERROR and "critical" in text
+
+
+def test_battery_thresholds_validated():
+    with pytest.raises(ValueError, match="battery_critical"):
+        LaunchpadConfig(battery_low=0.1, battery_critical=0.3)

@@ -142,3 +142,14 @@ def test_twist_to_motors_with_sonar_turns_in_place_when_blocked():
 def test_bad_sonar_config():
     with pytest.raises(ValueError, match="stop_distance"):
         SonarLimitConfig(stop_distance=0.7, slow_distance=0.6)
+
+
+def test_current_gives_the_new_command_without_counting_a_tick():
+    core = TwistToMotors(TwistToMotorsConfig(timeout_ticks=2))
+    assert core.current(0.0) is None                # silent before the first command
+    core.set_twist(0.1, 0.0)
+    for _ in range(5):
+        assert core.current(0.0) == pytest.approx((0.1, 0.1))
+    assert core.tick(0.02) == pytest.approx((0.1, 0.1))
+    assert core.tick(0.04) == (0.0, 0.0)            # the 2nd tick times out, as without current()
+    assert core.current(0.05) is None

@@ -202,3 +202,84 @@ def test_nan_target_ignored():
 def test_bad_config(field, value):
     with pytest.raises(ValueError, match=field):
         PidConfig(**{field: value})
+
+
+def simulate_step(react: bool, target: float = 0.2, t_step: float = 0.0123, seconds: float = 3.0,
+                  tau: float = 0.08, motor_gain: float = 0.97):
+    """Wheel = first-order motor (time constant ``tau`` s, steady speed ``motor_gain`` x the
+    feed-forward's guess, so the PID has work to do); targets arrive at 50 Hz from ``t_step``,
+    encoder readings at 100 Hz, the loop ticks at 30 Hz; with ``react`` each new target is
+    also acted on at once.  Returns [(t, speed)] every 1 ms and the first time a non-zero
+    command was applied."""
+    cfg = PidConfig(ticks_meter=29708.0)
+    ctrl = WheelController(cfg)
+    dt = 0.001
+    v = pos = cmd = 0.0
+    first_cmd = None
+    trace = []
+    next_tick, next_target, next_reading = 1 / 30, t_step, 0.0
+    for k in range(1, round(seconds / dt) + 1):
+        t = k * dt
+        v += (motor_gain * cmd / cfg.out_max * cfg.max_speed - v) * dt / tau
+        pos += v * dt
+        if t >= next_reading - 1e-12:
+            ctrl.add_reading(round(pos * cfg.ticks_meter), t)
+            next_reading += 0.01
+        out = None
+        if t >= next_target - 1e-12:
+            changed = ctrl.target != target or not ctrl.active
+            ctrl.set_target(target)
+            next_target += 0.02
+            if react and changed:
+                out = ctrl.react(t)
+        if t >= next_tick - 1e-12:
+            out = ctrl.tick(t)
+            next_tick += 1 / 30
+        if out is not None and out.motor_cmd is not None:
+            cmd = out.motor_cmd
+            if cmd and first_cmd is None:
+                first_cmd = t
+        trace.append((t, v))
+    return trace, first_cmd
+
+
+@pytest.mark.parametrize("react", [False, True])
+def test_step_response_bounds(react):
+    target = 0.2
+    trace, _ = simulate_step(react, target)
+    peak = max(v for _, v in trace)
+    assert peak <= 1.05 * target                                       # overshoot <= 5 %
+    rise = next(t for t, v in trace if v >= 0.9 * target)
+    assert rise <= 0.25                                                 # 90 % within 0.25 s of the step
+    assert all(abs(v - target) <= 0.03 * target for t, v in trace if t >= 0.5)   # within 3 % after 0.5 s
+    err_1s = target - next(v for t, v in trace if t >= 1.0)
+    assert 0 < target - trace[-1][1] < err_1s                          # and the integral keeps closing the gap
+
+
+def test_reacting_to_a_new_target_starts_at_once_and_keeps_the_steady_state():
+    timer_trace, timer_first = simulate_step(False)
+    event_trace, event_first = simulate_step(True)
+    assert event_first == pytest.approx(0.013)     # the millisecond the target arrived
+    assert timer_first > event_first                # the timer-only loop waited for its tick
+    v_timer = [v for t, v in timer_trace if t >= 2.0]
+    v_event = [v for t, v in event_trace if t >= 2.0]
+    assert max(abs(a - b) for a, b in zip(v_timer, v_event, strict=True)) < 0.002 * 0.2
+
+
+def test_react_does_not_count_as_a_loop_tick():
+    cfg = PidConfig(timeout_ticks=3)
+    ctrl = WheelController(cfg)
+    ctrl.add_reading(0, 0.0)
+    ctrl.set_target(0.2)
+    for k in range(10):
+        ctrl.react(0.001 * (k + 1))
+    assert ctrl.active
+    assert [ctrl.tick(0.1 + k / 30).motor_cmd != 0.0 for k in range(3)] == [True, True, False]
+
+
+def test_derivative_kick_of_an_early_step_is_bounded():
+    cfg = PidConfig(kd=2.0, ki=0.0, feed_forward=False, kp=0.0)
+    pid = VelocityPid(cfg)
+    pid.step(0.0, 0.0, 1 / 30)
+    kick = pid.step(0.2, 0.0, 0.001)            # 1 ms after the tick
+    assert kick == pytest.approx(2.0 * 0.2 / (0.5 / cfg.rate))

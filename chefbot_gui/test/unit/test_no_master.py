@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from conftest import PKG, TABLES, _free_port
 
+from chefbot_common.tables import load_tables
 from chefbot_gui.app import MasterWatcher, OfflineRobot, command_line_params, master_reachable
 from chefbot_gui.presenter import DeliveryPresenter
 from chefbot_gui.window import RobotGuiWindow
-from chefbot_common.tables import load_tables
 
 sys.path.insert(0, str(PKG.parent / "tools"))
 import procs  # the workspace's process-group helpers

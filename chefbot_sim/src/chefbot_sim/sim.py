@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
+from chefbot_sim import battery, imu_model
 from chefbot_sim.bullet import BulletSim
 from chefbot_sim.camera import RgbdRenderer, RgbFrame
 from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
@@ -39,6 +40,7 @@ from chefbot_sim.world import Shape, World
 from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
+BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
 DRIVES = ("plugin", "firmware")
 
@@ -67,14 +69,34 @@ class SimOptions:
     solver_iterations: int = 20        # pybullet constraint-solver iterations per physics step
     drive: str = "plugin"              # plugin | firmware
     pty_link: str = ""                 # firmware mode: symlink to the emulated LaunchPad's pty ('' = none)
-    battery_volts: float = 12.4        # firmware mode: battery voltage the board measures (V)
+    battery_volts: float = 12.4        # firmware mode without battery_model: constant voltage the board measures (V)
+    battery_model: bool = True         # firmware mode: the board measures the discharge model (battery.py)
+    battery_chemistry: str = "sla"     # sla | lipo3s | nimh10 (open-circuit voltage curve)
+    battery_capacity_ah: float = 10.0  # Ah (book: 12 V 10 Ah)
+    battery_initial_soc: float = 0.9   # state of charge at start, 0..1
+    battery_idle_current: float = 2.5  # A drawn besides the motors (NUC, camera, board)
+    imu_relative_yaw: bool = True      # IMU yaw 0 at the start pose, as the real MPU6050's DMP
+    imu_gyro_bias: float = imu_model.DEFAULT_GYRO_BIAS              # rad/s, z-gyro bias at start
+    imu_gyro_bias_drift: float = imu_model.DEFAULT_GYRO_BIAS_DRIFT  # rad/s/sqrt(s), bias random walk
     time_step: float = 1.0 / 240.0
+
+    def battery_config(self) -> battery.BatteryConfig:
+        return battery.BatteryConfig(chemistry=self.battery_chemistry, capacity_ah=self.battery_capacity_ah,
+                                     initial_soc=self.battery_initial_soc, idle_current=self.battery_idle_current)
+
+    def imu_drift_config(self) -> imu_model.ImuDriftConfig:
+        return imu_model.ImuDriftConfig(self.imu_relative_yaw, self.imu_gyro_bias, self.imu_gyro_bias_drift)
 
     def validate(self) -> None:
         if self.drive not in DRIVES:
             raise SimConfigError(f"drive must be one of {', '.join(DRIVES)}, got {self.drive!r}")
         if not (math.isfinite(self.battery_volts) and self.battery_volts >= 0):
             raise SimConfigError(f"battery_volts must be a finite number >= 0, got {self.battery_volts!r}")
+        try:
+            self.imu_drift_config()
+            self.battery_config()
+        except ValueError as exc:
+            raise SimConfigError(str(exc)) from None
         if self.depth_fill not in ("coarse", "full", "none"):
             raise SimConfigError(f"depth_fill must be coarse, full or none, got {self.depth_fill!r}")
         for name in ("clock_rate", "joint_state_rate", "ground_truth_rate", "bumper_rate", "rgb_rate"):
@@ -169,6 +191,9 @@ class _State:
     wheel_prev: tuple[float, float] | None = None
     wheel_speed: tuple[float, float] = (0.0, 0.0)
     imu_prev_vel: np.ndarray | None = None
+    imu_drift: tuple = (0.0, 0.0, None, 0)   # imu_model.DriftState
+    battery_soc: float = 1.0                 # state of charge 0..1 (battery.py)
+    battery_current: float = 0.0             # A, last computed draw
     rng_state: dict | None = None
 
 
@@ -224,6 +249,10 @@ class Simulator:
         self.enabled = {k: v > 0 for k, v in self.rates.items()}
         self.rng = np.random.default_rng(self.options.seed)
         self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
+        self._imu_drift = self.options.imu_drift_config()
+        self.s.imu_drift = imu_model.initial_state(self._imu_drift)
+        self._battery = self.options.battery_config()
+        self.s.battery_soc = self._battery.initial_soc
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
         self._initial = self.bullet.save_state()
         self.firmware: FirmwareDrive | None = None
@@ -231,7 +260,7 @@ class Simulator:
             try:
                 self.motor = self._motor_model(urdf_xml)
                 self.firmware = FirmwareDrive(self.options.pty_link, self.motor, self.s.wheel_prev,
-                                              self.options.battery_volts)
+                                              self._start_volts())
             except Exception:
                 self.bullet.close()
                 raise
@@ -269,6 +298,27 @@ class Simulator:
         cmds = self.firmware.motor_commands(self.s.wheel_speed)
         self.bullet.set_joint_velocities(self._wheels, [c[0] for c in cmds], [c[1] for c in cmds])
 
+    def _start_volts(self) -> float:
+        if not self.options.battery_model:
+            return self.options.battery_volts
+        return battery.terminal_voltage(self._battery, self.s.battery_soc, self._battery.idle_current)
+
+    def _discharge(self, dt: float) -> None:
+        """Firmware mode: draw the current of the motors (at the firmware's duties) and the rest
+        for ``dt`` s; the board measures the pack's terminal voltage."""
+        cfg, motor = self._battery, self.motor
+        amps = cfg.idle_current + sum(
+            battery.motor_current(cfg, d, motor.torque(d, w), motor.stall_torque)
+            for d, w in zip(self.firmware.duties(), self.s.wheel_speed, strict=True))
+        self.s.battery_soc = battery.discharge(cfg, self.s.battery_soc, amps, dt)
+        self.s.battery_current = amps
+        self.firmware.set_battery(battery.terminal_voltage(cfg, self.s.battery_soc, amps))
+
+    @property
+    def battery(self) -> tuple[float, float]:
+        """(state of charge 0..1, current A) of the simulated pack (firmware mode with battery_model)."""
+        return self.s.battery_soc, self.s.battery_current
+
     def _drive(self) -> None:
         d = self.params.drive
         v, w = self.s.cmd
@@ -299,6 +349,8 @@ class Simulator:
                 ang, vel = self.bullet.joint_states(self._wheels)
                 self.s.wheel_speed = (float(vel[0]), float(vel[1]))
                 fw.after_physics(ang, self.s.time)
+                if self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
+                    self._discharge(BATTERY_STEPS * dt)
             if self.s.time + 1e-9 < next_due:
                 continue  # most steps: no reading due
             for kind in SENSORS:
@@ -398,7 +450,10 @@ class Simulator:
         gyro = rot.T @ ang
         gyro = gyro + self.rng.normal(0.0, imu.gyro_noise_stddev, 3) if imu.gyro_noise_stddev > 0 else gyro
         acc = acc + self.rng.normal(0.0, imu.accel_noise_stddev, 3) if imu.accel_noise_stddev > 0 else acc
-        return {"orientation": matrix_to_quat(rot), "angular_velocity": gyro, "linear_acceleration": acc,
+        # the real DMP: heading relative to power-on, drifting with the gyro bias
+        self.s.imu_drift = imu_model.advance(self.s.imu_drift, self.s.time, self._imu_drift, self.options.seed)
+        quat, gyro = imu_model.apply(matrix_to_quat(rot), gyro, self.start.yaw, self.s.imu_drift, self._imu_drift)
+        return {"orientation": quat, "angular_velocity": gyro, "linear_acceleration": acc,
                 "gyro_variance": imu.gyro_noise_stddev ** 2, "accel_variance": imu.accel_noise_stddev ** 2}
 
     @staticmethod

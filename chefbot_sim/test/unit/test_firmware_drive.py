@@ -7,6 +7,7 @@ import select
 import numpy as np
 import pytest
 
+from chefbot_sim import battery
 from chefbot_sim.firmware_drive import (
     BOOK_FREE_SPEED,
     BOOK_STALL_TORQUE,
@@ -146,7 +147,9 @@ def test_status_lines_on_sim_time_and_board_inputs(fw_sim):
     lines = link.lines()
     enc = [f for f in lines if f[0] == "e"]
     assert len(enc) == pytest.approx(60, abs=2), "30 Hz of sim time"
-    assert any(f[0] == "b" and float(f[1]) == pytest.approx(12.4, abs=0.05) for f in lines)
+    # the battery model's terminal voltage (chefbot_sim/battery.py; test_battery.py covers the discharge)
+    volts = battery.terminal_voltage(sim.options.battery_config(), *sim.battery)
+    assert any(f[0] == "b" and float(f[1]) == pytest.approx(volts, abs=0.05) for f in lines)
     quats = [f for f in lines if f[0] == "i"]
     assert quats and float(quats[-1][4]) == pytest.approx(1.0, abs=1e-3)  # facing +x: identity
     states = [f[3] for f in lines if f[0] == "s"]

@@ -45,12 +45,12 @@ def test_param_error_type() -> None:
         read_sim_params(getter({**BASE, "~firmware_max_rtf": -2.0}))
 
 
-def test_firmware_caps_real_time_factor_and_paces_every_step() -> None:
-    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 3.0}))
+def test_firmware_cap_is_off_by_default_and_still_works_and_paces_every_step() -> None:
+    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 0.0}))
+    assert node.effective_rtf(firmware=True) == 0.0          # uncapped by default
+    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 3.0, "~firmware_max_rtf": 1.0}))
     assert node.effective_rtf(firmware=False) == 3.0
     assert node.effective_rtf(firmware=True) == 1.0
-    node, _ = read_sim_params(getter({**BASE, "~real_time_factor": 0.0, "~firmware_max_rtf": 0.0}))
-    assert node.effective_rtf(firmware=True) == 0.0
     assert pacing(False, 1.0) == (STEPS_PER_BATCH, None)
     assert pacing(True, 1.0) == (1, FIRMWARE_MAX_LAG)
 
