@@ -52,11 +52,15 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=20.0, help="measuring window, wall s")
     ap.add_argument("--warmup", type=float, default=30.0, help="longest wait for the sim to start, wall s")
     ap.add_argument("--drive-forward", action="store_true", help="publish cmd_vel 0.2 m/s while measuring")
+    ap.add_argument("--launch", nargs=2, default=("chefbot_sim", "chefbot_hotel_world.launch"),
+                    metavar=("PKG", "FILE"), help="launch file to measure (default: the hotel world)")
+    ap.add_argument("--subscribe", nargs="*", default=[], metavar="TOPIC",
+                    help="also subscribe to these topics (raw bytes, like RViz), e.g. the camera's")
     args, launch_args = ap.parse_known_args()
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1")
-    proc = subprocess.Popen(["roslaunch", "-p", str(port), "chefbot_sim", "chefbot_hotel_world.launch",
-                             *launch_args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    proc = subprocess.Popen(["roslaunch", "-p", str(port), *args.launch, *launch_args], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     os.environ.update(ROS_MASTER_URI=env["ROS_MASTER_URI"], ROS_HOSTNAME="127.0.0.1")
     try:
@@ -85,6 +89,10 @@ def main() -> int:
             return m.pose.pose.position.x, m.pose.pose.position.y
 
         rospy.Subscriber("/clock", Clock, on_clock, tcp_nodelay=True)
+        received = {t: 0 for t in args.subscribe}
+        for topic in args.subscribe:
+            rospy.Subscriber(topic, rospy.AnyMsg, lambda _m, t=topic: received.__setitem__(t, received[t] + 1),
+                             queue_size=2, buff_size=2 ** 25)
         rospy.Subscriber("ground_truth/odom", Odometry, lambda m: last.__setitem__("gt", pose(m)))
         rospy.Subscriber("odom", Odometry, lambda m: last.__setitem__("odom", pose(m)))
         cmd = rospy.Publisher("cmd_vel", Twist, queue_size=1)
@@ -109,7 +117,8 @@ def main() -> int:
         with lock:
             sim1, gt1, od1 = last["clock"], last["gt"], last["odom"]
         wall = time.monotonic() - wall0
-        out = {"sim_seconds": sim1 - sim0, "wall_seconds": wall, "x_real_time": (sim1 - sim0) / wall}
+        out = {"sim_seconds": sim1 - sim0, "wall_seconds": wall, "x_real_time": (sim1 - sim0) / wall,
+               "received": received}
         if args.drive_forward and gt0 and gt1 and od0 and od1:
             out["ground_truth_m"] = math.dist(gt0, gt1)
             out["odom_m"] = math.dist(od0, od1)

@@ -20,6 +20,7 @@ PACKAGES = {
     "chefbot_navigation": "chefbot_navigation",
     "chefbot_sim": "chefbot_sim",
     "chefbot_gui": "chefbot_gui",
+    "chefbot_vision": "chefbot_vision",
     "tests": "chefbot_tests",
 }
 

@@ -131,12 +131,24 @@ class LayeredCostmap:
             static[data < 0] = NO_INFORMATION
         self.static = static
         self.obstacles = np.zeros(occ.data.shape, dtype=bool)
+        # 3-D obstacles of the point-cloud source (pointcloud_layer.PointCloudLayer, set by move_base):
+        # kept apart from the scan's marks so that scan rays passing under a table top do not clear it
+        self.cloud_layer = None
         self._master: np.ndarray | None = None
+
+    def _all_obstacles(self) -> np.ndarray:
+        return self.obstacles if self.cloud_layer is None else self.obstacles | self.cloud_layer.grid
+
+    def layers_changed(self) -> None:
+        """An obstacle source changed its marks outside update_scan (the point-cloud layer)."""
+        self._master = None
 
     # --- obstacle layer -------------------------------------------------------------------------
     def clear_obstacles(self) -> None:
         """Forget every scan obstacle (recovery 'clear costmaps')."""
         self.obstacles[:] = False
+        if self.cloud_layer is not None:
+            self.cloud_layer.clear()
         self._master = None
 
     def update_scan(self, sensor: Pose2D, ranges: np.ndarray, angle_min: float, angle_increment: float,
@@ -188,7 +200,7 @@ class LayeredCostmap:
     def base(self) -> np.ndarray:
         """Static layer with scan obstacles, before inflation."""
         out = self.static.copy()
-        out[self.obstacles] = LETHAL
+        out[self._all_obstacles()] = LETHAL
         return out
 
     def master(self) -> Costmap:
@@ -216,7 +228,7 @@ class LayeredCostmap:
         sc0, sc1 = max(pc0, 0), min(pc0 + pw, self.info.width)
         if sr0 < sr1 and sc0 < sc1:
             static = self.static[sr0:sr1, sc0:sc1].copy()
-            static[self.obstacles[sr0:sr1, sc0:sc1]] = LETHAL
+            static[self._all_obstacles()[sr0:sr1, sc0:sc1]] = LETHAL
             pad[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0] = static
         cost = inflate(pad, res, self.params)[margin:margin + h, margin:margin + w]
         ox = self.info.origin_x + c0 * res

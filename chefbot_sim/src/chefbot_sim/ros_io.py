@@ -12,6 +12,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, Range
 from chefbot_bringup.odometry import OdometryState
 from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs
 from chefbot_sim.events import GroundTruthData, ImuData, JointStatesData, OdomData, UltrasonicData
+from chefbot_vision.ros_io import camera_info
 
 _ZERO_COV = np.zeros((6, 6))
 
@@ -76,14 +77,10 @@ def range_msg(d: UltrasonicData, stamp, frame: str) -> Range:
 
 
 def camera_info_msg(info: dict, frame: str) -> CameraInfo:
-    """sensor_msgs/CameraInfo from :meth:`chefbot_sim.sim.CameraModel.info` (no rectification)."""
-    m = CameraInfo()
-    m.header.frame_id = frame
-    m.width, m.height = info["width"], info["height"]
-    m.distortion_model = info["distortion_model"]
-    m.D, m.K, m.P = info["D"], info["K"], info["P"]
-    m.R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    return m
+    """sensor_msgs/CameraInfo from :meth:`chefbot_sim.sim.CameraModel.info` (no rectification; built by
+    chefbot_vision's builder, the one ``cam`` uses)."""
+    k = info["K"]
+    return camera_info(info["width"], info["height"], k[0], k[4], k[2], k[5], frame)
 
 
 def rgb_to_image(rgb: np.ndarray, stamp, frame: str) -> Image:

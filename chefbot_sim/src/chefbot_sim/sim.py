@@ -32,10 +32,12 @@ import numpy as np
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim import battery, imu_model
 from chefbot_sim.bullet import BulletSim
+from chefbot_sim.camera import RgbdRenderer, RgbFrame
 from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.world import Shape, World
+from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
@@ -56,9 +58,10 @@ class SimOptions:
     joint_state_rate: float = 50.0
     ground_truth_rate: float = 50.0
     bumper_rate: float = 20.0
-    rgb_rate: float = 2.0              # TinyRenderer is ~2 ms per 80×60 frame
-    rgb_width: int = 80
-    rgb_height: int = 60
+    rgb_rate: float = 10.0             # TinyRenderer, only while subscribed (chefbot_sim.camera)
+    rgb_width: int = 320
+    rgb_height: int = 240
+    registered_stride: int = 2         # px step of camera/depth_registered/points over the RGB image
     depth_band_rows: int = 10          # rows around the centre cast exactly (depth_to_scan's scan_height)
     depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
     depth_coarse_stride: int = 8       # px between coarse samples outside the band
@@ -105,18 +108,14 @@ class SimOptions:
             raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
         if self.rgb_width < 1 or self.rgb_height < 1:
             raise SimConfigError("rgb_width and rgb_height must be >= 1")
+        if self.registered_stride < 1:
+            raise SimConfigError(f"registered_stride must be >= 1, got {self.registered_stride}")
 
 
-@dataclass
-class CameraModel:
-    """Pinhole intrinsics (ROS convention: integer pixel coordinates are pixel centres)."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
+@dataclass(frozen=True)
+class CameraModel(Pinhole):
+    """Pinhole intrinsics (chefbot_vision's Pinhole; ROS convention: integer pixel coordinates are pixel
+    centres) with the simulator's helpers."""
 
     @classmethod
     def from_fov(cls, width: int, height: int, horizontal_fov: float) -> CameraModel:
@@ -227,6 +226,12 @@ class Simulator:
         cam = p.depth_camera
         self.depth_camera = CameraModel.from_fov(cam.width, cam.height, cam.horizontal_fov)
         self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
+        # rendered images and clouds (chefbot_sim.camera); dense_depth: depth by rendering every pixel
+        # instead of band + coarse rays (the node sets it while camera/depth/points is subscribed)
+        self.rgbd = RgbdRenderer(self.bullet, self.rgb_camera, self.depth_camera, cam.rgb_frame,
+                                 cam.depth_frame, cam.min_range, cam.max_range)
+        self.dense_depth = False
+        self.last_rgb: RgbFrame | None = None
         self._spawned: list[Shape] = []
         self._caster = RayCaster(world.shapes)
         self._build_depth_rays()
@@ -480,7 +485,9 @@ class Simulator:
     def _build_depth_rays(self) -> None:
         cam = self.depth_camera
         band = self.options.depth_band_rows
-        first = max(0, int(round(cam.cy - (band - 1) / 2.0)))
+        # the rows depth_to_scan reads (depthimage_to_laserscan's offset = int(cy - scan_height / 2)):
+        # one row off, its top row was coarse-filled from 2 rows higher and saw overhangs it must not
+        first = max(0, int(cam.cy - band // 2))
         self._band_rows = np.arange(first, min(cam.height, first + band))
         mode = self.options.depth_fill
         stride = self.options.depth_coarse_stride
@@ -509,6 +516,8 @@ class Simulator:
         nearest coarse sample; with none they are NaN; with full every pixel is exact.
         """
         cam, p = self.depth_camera, self.params.depth_camera
+        if self.dense_depth:
+            return self._depth_noise_and_range(self.rgbd.render_depth())
         pos, rot = self.bullet.frame_pose(p.depth_frame)
         img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
         t_all = self._caster.cast(pos, self._dirs_all @ rot.T, p.max_range)
@@ -525,17 +534,20 @@ class Simulator:
             mask = np.ones(cam.height, bool)
             mask[self._band_rows] = False
             img[mask] = fill[mask]
+        return self._depth_noise_and_range(img)
+
+    def _depth_noise_and_range(self, img: np.ndarray) -> np.ndarray:
+        p = self.params.depth_camera
         if p.noise_stddev > 0:  # float32 normals: ~2x cheaper for 19 200 pixels
             img += self.rng.standard_normal(img.shape, dtype=np.float32) * np.float32(p.noise_stddev)
         img[~((img >= p.min_range) & (img <= p.max_range))] = np.nan
         return img
 
     def rgb_image(self) -> np.ndarray:
-        """uint8 (H, W, 3) colour image from the RGB optical frame (TinyRenderer)."""
-        cam, p = self.rgb_camera, self.params.depth_camera
-        pos, rot = self.bullet.frame_pose(p.rgb_frame)
-        img, _ = self.bullet.render(cam.width, cam.height, pos, rot, cam.fy, 0.05, p.max_range, rgb=True)
-        return img
+        """uint8 (H, W, 3) colour image from the RGB optical frame (TinyRenderer); the render's
+        registered depth stays in ``last_rgb`` (for camera/depth_registered/points)."""
+        self.last_rgb = self.rgbd.render_rgb()
+        return self.last_rgb.image
 
     # ------------------------------------------------------------ world edits
     def _rebuild_caster(self) -> None:

@@ -160,7 +160,7 @@ def test_schedule_rates(sim):
     ev = sim.step(240)
     counts = {k: sum(e.kind == k for e in ev) for k in sim.rates}
     assert counts["clock"] == 100 and counts["imu"] == 50 and counts["depth"] == 10
-    assert counts["ultrasonic"] == 10 and counts["odom"] == 50 and counts["rgb"] == 2
+    assert counts["ultrasonic"] == 10 and counts["odom"] == 50 and counts["rgb"] == round(sim.rates["rgb"]) == 10
     sim.set_enabled("rgb", False)
     assert not any(e.kind == "rgb" for e in sim.step(240))
     rgb = sim.rgb_image()

@@ -1,0 +1,1 @@
+"""ChefBot vision: book chapter 7 (OpenCV with ROS), depth -> point clouds."""
