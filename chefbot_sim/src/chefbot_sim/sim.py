@@ -32,6 +32,7 @@ import numpy as np
 from chefbot_sim.bullet import BulletSim
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
+from chefbot_sim.wheel_noise import WheelNoise, measure_wheels, quantise
 from chefbot_sim.world import Pose2D, Shape, World
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
@@ -63,6 +64,11 @@ class SimOptions:
     drive: str = "plugin"              # plugin | firmware
     pty_link: str = ""                 # firmware mode: symlink to the emulated LaunchPad's pty ('' = none)
     battery_volts: float = 12.4        # firmware mode: battery voltage the board measures (V)
+    # wheel odometry errors (chefbot_sim.wheel_noise; 0 = perfect odometry); ground truth unaffected
+    wheel_radius_error_left: float = 0.0   # fraction: real rolling radius / nominal - 1
+    wheel_radius_error_right: float = 0.0  # fraction
+    wheel_slip_stddev: float = 0.0         # m per sqrt(m) of wheel travel
+    wheel_encoder_counts: int = 0          # plugin mode: counts/rev the odometry is quantised to (0 = none)
     time_step: float = 1.0 / 240.0
 
     def validate(self) -> None:
@@ -81,6 +87,15 @@ class SimOptions:
             raise SimConfigError("depth_band_rows and depth_coarse_stride must be >= 1")
         if self.rgb_width < 1 or self.rgb_height < 1:
             raise SimConfigError("rgb_width and rgb_height must be >= 1")
+        try:
+            self.wheel_noise.validate()
+        except ValueError as e:
+            raise SimConfigError(str(e)) from None
+
+    @property
+    def wheel_noise(self) -> WheelNoise:
+        return WheelNoise(self.wheel_radius_error_left, self.wheel_radius_error_right, self.wheel_slip_stddev,
+                          self.wheel_encoder_counts)
 
 
 class Event(NamedTuple):
@@ -182,6 +197,9 @@ class _State:
     wheel_speed: tuple[float, float] = (0.0, 0.0)
     imu_prev_vel: np.ndarray | None = None
     rng_state: dict | None = None
+    wheel_true_prev: tuple[float, float] = (0.0, 0.0)   # true wheel angles at the last measurement
+    wheel_measured: tuple[float, float] = (0.0, 0.0)    # what the encoders report (rad)
+    wheel_rng_state: dict | None = None
 
 
 class Simulator:
@@ -231,6 +249,10 @@ class Simulator:
         self.rng = np.random.default_rng(self.options.seed)
         self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_true_prev = self.s.wheel_measured = self.s.wheel_prev
+        self.s.wheel_prev = tuple(quantise(a, self.options.wheel_encoder_counts) for a in self.s.wheel_prev)
+        self.wheel_noise = self.options.wheel_noise
+        self.wheel_rng = np.random.default_rng([self.options.seed, 1])   # own stream: other noise unchanged
         self._initial = self.bullet.save_state()
         self.firmware: FirmwareDrive | None = None
         if self.drive == "firmware":
@@ -304,7 +326,7 @@ class Simulator:
             if fw is not None:
                 ang, vel = self.bullet.joint_states(self._wheels)
                 self.s.wheel_speed = (float(vel[0]), float(vel[1]))
-                fw.after_physics(ang, self.s.time)
+                fw.after_physics(self._measure_wheels(ang), self.s.time)
             if self.s.time + 1e-9 < next_due:
                 continue  # most steps: no reading due
             for kind in SENSORS:
@@ -374,13 +396,28 @@ class Simulator:
         return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
                 "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_of(quat)}
 
+    def _measure_wheels(self, true_angles) -> tuple[float, float]:
+        """The wheel angles (rad) the encoders report now (see chefbot_sim.wheel_noise)."""
+        now = (float(true_angles[0]), float(true_angles[1]))
+        if self.wheel_noise.active:
+            self.s.wheel_measured = measure_wheels(self.wheel_noise, self.wheel_rng, self.s.wheel_true_prev, now,
+                                                   self.s.wheel_measured, self.params.drive.wheel_radius)
+        else:
+            self.s.wheel_measured = (self.s.wheel_measured[0] + now[0] - self.s.wheel_true_prev[0],
+                                     self.s.wheel_measured[1] + now[1] - self.s.wheel_true_prev[1])
+        self.s.wheel_true_prev = now
+        return self.s.wheel_measured
+
     def _odom(self) -> dict:
         d = self.params.drive
-        ang, vel = self.bullet.joint_states(self._wheels)
+        true_ang, vel = self.bullet.joint_states(self._wheels)
+        counts = self.wheel_noise.encoder_counts
+        ang = [quantise(a, counts) for a in self._measure_wheels(true_ang)]
         pl, pr = self.s.wheel_prev
         dl = (ang[0] - pl) * d.wheel_radius
         dr = (ang[1] - pr) * d.wheel_radius
         self.s.wheel_prev = (float(ang[0]), float(ang[1]))
+        vel = (vel[0] / (1.0 + self.wheel_noise.radius_error_left), vel[1] / (1.0 + self.wheel_noise.radius_error_right))
         ds, dth = (dl + dr) / 2.0, (dr - dl) / d.wheel_separation
         x, y, th = self.s.odom
         x += ds * math.cos(th + dth / 2.0)
@@ -521,10 +558,12 @@ class Simulator:
 
     def _resync_wheels(self) -> None:
         """Wheel angles changed outside physics: no odometry, no encoder edges for that."""
-        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_true_prev = tuple(float(a) for a in self.bullet.joint_states(self._wheels)[0])
+        counts = self.wheel_noise.encoder_counts
+        self.s.wheel_prev = tuple(quantise(a, counts) for a in self.s.wheel_measured)
         self.s.wheel_speed = (0.0, 0.0)
         if self.firmware is not None:
-            self.firmware.resync(self.s.wheel_prev)
+            self.firmware.resync(self.s.wheel_measured)
 
     def teleport(self, pose: Pose2D) -> None:
         """Put the robot at ``pose`` at rest; odometry (and in firmware mode the
@@ -561,6 +600,7 @@ class Simulator:
         st = _State(**{k: getattr(self.s, k) for k in self.s.__dataclass_fields__})
         st.due = dict(self.s.due)
         st.rng_state = self.rng.bit_generator.state
+        st.wheel_rng_state = self.wheel_rng.bit_generator.state
         return self.bullet.save_state(), st, list(self._spawned)
 
     def restore(self, snap: tuple[int, _State, list[Shape]]) -> None:
@@ -571,6 +611,7 @@ class Simulator:
         self.s = _State(**{k: getattr(st, k) for k in st.__dataclass_fields__})
         self.s.due = dict(st.due)
         self.rng.bit_generator.state = st.rng_state
+        self.wheel_rng.bit_generator.state = st.wheel_rng_state
         target = self.s.wheel_target
         self.bullet.set_joint_velocities(self._wheels, target, self.params.drive.torque)
 
