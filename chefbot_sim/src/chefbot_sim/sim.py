@@ -417,7 +417,8 @@ class Simulator:
         dl = (ang[0] - pl) * d.wheel_radius
         dr = (ang[1] - pr) * d.wheel_radius
         self.s.wheel_prev = (float(ang[0]), float(ang[1]))
-        vel = (vel[0] / (1.0 + self.wheel_noise.radius_error_left), vel[1] / (1.0 + self.wheel_noise.radius_error_right))
+        wn = self.wheel_noise
+        vel = (vel[0] / (1.0 + wn.radius_error_left), vel[1] / (1.0 + wn.radius_error_right))
         ds, dth = (dl + dr) / 2.0, (dr - dl) / d.wheel_separation
         x, y, th = self.s.odom
         x += ds * math.cos(th + dth / 2.0)
