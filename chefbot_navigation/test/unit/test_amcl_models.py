@@ -92,9 +92,16 @@ def random_map(seed: int, h: int = 23, w: int = 31) -> OccupancyMap:
 @pytest.mark.parametrize("seed", range(4))
 def test_distance_transform_matches_brute_force(seed: int) -> None:
     occ = random_map(seed)
+    occ.data[5:12, 8:20] = 100                           # a solid block: its inside is not a surface
     model = LaserModel(sigma_hit=0.3, likelihood_max_dist=0.7)
     field = LikelihoodField(occ, model)
-    rows, cols = np.nonzero(occ.data >= 65)
+    occ_mask = occ.data >= 65
+    padded = np.pad(occ_mask, 1, constant_values=False)
+    all_nb_occ = np.ones_like(occ_mask)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            all_nb_occ &= padded[1 + dr:1 + dr + occ_mask.shape[0], 1 + dc:1 + dc + occ_mask.shape[1]]
+    rows, cols = np.nonzero(occ_mask & ~all_nb_occ)     # surface cells: brute force
     rr, cc = np.mgrid[0:occ.info.height, 0:occ.info.width]
     d = np.sqrt((rr[..., None] - rows) ** 2 + (cc[..., None] - cols) ** 2).min(axis=-1) * occ.info.resolution
     d = np.minimum(d, model.likelihood_max_dist)
@@ -105,6 +112,14 @@ def test_distance_transform_matches_brute_force(seed: int) -> None:
     far = math.exp(-0.7 ** 2 / (2 * 0.3 ** 2))
     off = field.fit_at(np.array([-1.01, -5.0, 2.2, 0.0]), np.array([0.6, 0.6, 0.6, 2.81]))
     assert off == pytest.approx([far] * 4, abs=1e-6)
+
+
+def test_end_points_inside_a_solid_obstacle_do_not_fit() -> None:
+    data = np.zeros((40, 40), np.int8)
+    data[10:30, 10:30] = 100                              # a 1 m solid block
+    field = LikelihoodField(OccupancyMap(GridInfo(0.05, 40, 40), data), LaserModel(sigma_hit=0.2))
+    face, inside = field.fit_at(np.array([0.525]), np.array([1.0])), field.fit_at(np.array([0.825]), np.array([1.0]))
+    assert face[0] == pytest.approx(1.0) and inside[0] < 0.4
 
 
 def test_weights_are_amcl_cubed_sum() -> None:

@@ -1,9 +1,14 @@
 """Likelihood-field measurement model (AMCL's ``likelihood_field``), precomputed from the map.
 
-For every map cell the distance ``d`` (m) to the nearest occupied cell comes
-from an exact Euclidean distance transform (``scipy.ndimage.distance_transform_edt``),
-capped at ``laser_likelihood_max_dist``; points off the map count as that cap,
-as in ROS's amcl.  A beam ending at distance ``d`` from the nearest obstacle has
+For every map cell the distance ``d`` (m) to the nearest obstacle *surface* cell
+(an occupied cell with a non-occupied 8-neighbour) comes from an exact Euclidean
+distance transform (``scipy.ndimage.distance_transform_edt``), capped at
+``laser_likelihood_max_dist``; points off the map count as that cap, as in ROS's
+amcl.  amcl measures to any occupied cell, so a beam end point *inside* a solid
+obstacle fits perfectly: on maps with filled obstacles (our hotel raster's 1 m
+tables) a narrow camera facing a table face could not tell 0.3 m along its axis
+(measured: 0.19 m RMS tracking error, 0.02 m with surfaces).  On maps with thin
+walls (SLAM) every occupied cell is a surface cell and nothing changes.  A beam ending at distance ``d`` from the nearest obstacle has
 
     pz = z_hit · exp(-d² / (2 sigma_hit²)) + z_rand / range_max
 
@@ -55,11 +60,18 @@ class LaserModel:
             raise ValueError(f"occupied_threshold must be in 1..100, got {self.occupied_threshold}")
 
 
+def obstacle_surface(occupied: np.ndarray) -> np.ndarray:
+    """Occupied cells with at least one non-occupied 8-neighbour (or on the map's edge)."""
+    inner = ndimage.binary_erosion(occupied, structure=np.ones((3, 3), bool), border_value=0)
+    return occupied & ~inner
+
+
 def distance_to_obstacles(occupied: np.ndarray, resolution: float, cap: float) -> np.ndarray:
-    """Euclidean distance (m) from each cell centre to the nearest occupied cell centre, capped."""
-    if not occupied.any():
+    """Euclidean distance (m) from each cell centre to the nearest obstacle-surface cell centre, capped."""
+    surface = obstacle_surface(occupied)
+    if not surface.any():
         return np.full(occupied.shape, cap)
-    return np.minimum(ndimage.distance_transform_edt(~occupied) * resolution, cap)
+    return np.minimum(ndimage.distance_transform_edt(~surface) * resolution, cap)
 
 
 class LikelihoodField:
