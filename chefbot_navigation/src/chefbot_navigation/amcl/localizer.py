@@ -231,9 +231,12 @@ class Amcl:
         ran = False
         if self.force or self.moved(odom):
             endpoints = select_beams(ranges, angles, max(rmin, 0.0), rmax, cfg.laser_max_beams, laser_pose)
-            if len(endpoints) == 0:
-                raise ValueError("scan has no valid beam (all NaN/inf or out of range)")
             self._predict(odom)
+            self.last_scan = t
+            if len(endpoints) == 0:   # e.g. the depth camera right at a table: odometry only, the spread grows
+                pose, cov, _ = self.pf.estimate()
+                self.estimate = Estimate(pose, cov, t)
+                raise ValueError("scan has no valid beam (all NaN/inf or out of range)")
             self.fit = self.pf.weigh(self.field, endpoints, rmax)
             pose, cov, _ = self.pf.estimate()
             self.estimate = Estimate(pose, cov, t)
@@ -258,6 +261,14 @@ class Amcl:
         return True
 
     # ------------------------------------------------------------ reporting
+    def pose_params(self) -> dict[str, float]:
+        """The estimate as amcl saves it on the parameter server (``initial_pose_*``, ``initial_cov_*``)."""
+        if self.estimate is None:
+            return {}
+        p, c = self.estimate.pose, self.estimate.cov
+        return {"initial_pose_x": p.x, "initial_pose_y": p.y, "initial_pose_a": p.yaw,
+                "initial_cov_xx": float(c[0, 0]), "initial_cov_yy": float(c[1, 1]), "initial_cov_aa": float(c[2, 2])}
+
     def diagnostics(self, t: float) -> tuple[int, str, dict[str, float]]:
         """(level, message, values) for /diagnostics at time ``t`` (s)."""
         cfg = self.cfg

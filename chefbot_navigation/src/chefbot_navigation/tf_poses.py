@@ -1,0 +1,56 @@
+"""tf lookups as planar poses, with amcl's rules for stale odometry (ROS side: uses rospy and tf2_ros).
+
+Kept out of the node so that it stays wiring only; the pure localization core never sees tf.
+"""
+from __future__ import annotations
+
+import rospy
+import tf2_ros
+
+from chefbot_navigation.geometry import Pose2D
+from chefbot_navigation.ros_io import transform_to_pose2d
+
+TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
+
+
+class TfPoses:
+    """Odometry pose of the base at a stamp, and the (static, cached) pose of sensor frames on the base."""
+
+    def __init__(self, odom_frame: str, base_frame: str, tolerance: float, cache_time: float = 30.0) -> None:
+        self.odom_frame, self.base_frame, self.tolerance = odom_frame, base_frame, tolerance
+        self.buffer = tf2_ros.Buffer(cache_time=rospy.Duration(cache_time))
+        self.listener = tf2_ros.TransformListener(self.buffer)
+        self.sensors: dict[str, Pose2D] = {}
+
+    def odom_pose(self, stamp: rospy.Time) -> Pose2D | None:
+        """odom->base at ``stamp``, else the latest one if at most ``tolerance`` s older; else None (warned)."""
+        err = ""
+        for at, wait in ((stamp, 0.1), (rospy.Time(0), 0.0)):
+            try:
+                t = self.buffer.lookup_transform(self.odom_frame, self.base_frame, at, rospy.Duration(wait))
+            except TF_ERRORS as exc:
+                err = str(exc)
+                continue
+            lag = (stamp - t.header.stamp).to_sec()
+            if lag <= self.tolerance:
+                return transform_to_pose2d(t)
+            err = f"it is {lag:.2f} s older than the scan (> transform_tolerance {self.tolerance} s)"
+        rospy.logwarn_throttle_identical(5.0, f"no usable tf {self.odom_frame}->{self.base_frame}: {err}")
+        return None
+
+    def sensor_pose(self, frame: str) -> Pose2D | None:
+        """Pose of ``frame`` in the base frame (looked up once, then cached); None (error logged) if unknown."""
+        if frame not in self.sensors:
+            try:
+                t = self.buffer.lookup_transform(self.base_frame, frame, rospy.Time(0), rospy.Duration(0.5))
+            except TF_ERRORS as exc:
+                rospy.logerr_throttle_identical(5.0, f"scan frame '{frame}' unknown to tf (no "
+                                                     f"{self.base_frame}->{frame}): {exc}")
+                return None
+            self.sensors[frame] = transform_to_pose2d(t)
+        return self.sensors[frame]
+
+    def clear(self) -> None:
+        """Forget everything (time jumped backwards)."""
+        self.buffer.clear()
+        self.sensors.clear()
