@@ -23,12 +23,14 @@ from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "unit"))
-from amcl_scenes import cast, room_map
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:0] = [HERE, os.path.join(HERE, "unit")]
+from amcl_scenes import cast, room_map  # noqa: E402
+from move_base_test_node import wait_until  # noqa: E402  (shared rostest helper)
 
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import GridInfo, OccupancyMap
-from chefbot_navigation.ros_io import (
+from chefbot_navigation.geometry import Pose2D  # noqa: E402
+from chefbot_navigation.grid import GridInfo, OccupancyMap  # noqa: E402
+from chefbot_navigation.ros_io import (  # noqa: E402
     msg_to_pose_cov,
     occupancy_to_msg,
     pose2d_to_transform,
@@ -40,14 +42,6 @@ PKG = "chefbot_navigation"
 ROOM = room_map()
 TRUTH = Pose2D(2.5, 2.5, 0.3)
 ANGLES = np.linspace(-0.5, 0.5, 160)
-
-
-def wait_until(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline or rospy.is_shutdown():
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 class AmclBadInputsTest(unittest.TestCase):

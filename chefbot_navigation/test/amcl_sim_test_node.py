@@ -7,8 +7,9 @@ Durations are sim time; wall-clock bounds are generous timeouts for a loaded mac
 from __future__ import annotations
 
 import math
+import os
+import sys
 import threading
-import time
 import unittest
 
 import actionlib
@@ -18,25 +19,20 @@ import rostest
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Pose2D as Pose2DMsg
-from geometry_msgs.msg import PoseWithCovarianceStamped, Quaternion, Twist, Vector3
-from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, Vector3
+from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import Odometry
 from std_srvs.srv import Empty
 
-from chefbot_navigation.geometry import Pose2D, quaternion_from_yaw, wrap_angle, yaw_from_quaternion
+from chefbot_navigation.geometry import Pose2D, wrap_angle, yaw_from_quaternion
 from chefbot_navigation.ros_io import pose_cov_to_msg, transform_to_pose2d
 from chefbot_sim.world import load_tables
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from move_base_test_node import make_goal, wait_until
+
 PKG = "chefbot_navigation"
 WALL = 900.0
-
-
-def wait_until(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline or rospy.is_shutdown():
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 class Tracker:
@@ -91,15 +87,6 @@ class Tracker:
             return self.truth[1]
 
 
-def goal_for(p) -> MoveBaseGoal:
-    g = MoveBaseGoal()
-    g.target_pose.header.frame_id = "map"
-    g.target_pose.header.stamp = rospy.Time.now()
-    g.target_pose.pose.position.x, g.target_pose.pose.position.y = p.x, p.y
-    g.target_pose.pose.orientation = Quaternion(*quaternion_from_yaw(p.yaw))
-    return g
-
-
 class AmclSimTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
@@ -115,7 +102,7 @@ class AmclSimTest(unittest.TestCase):
 
     def deliver(self, name: str) -> tuple[float, float]:
         target = self.tables[name]
-        self.client.send_goal(goal_for(target))
+        self.client.send_goal(make_goal(target.x, target.y, target.yaw))
         self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL)), f"{name}: no result")
         self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, f"{name}: {self.client.get_goal_status_text()}")
         rospy.sleep(1.0)
