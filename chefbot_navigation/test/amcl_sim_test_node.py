@@ -18,6 +18,7 @@ import rospy
 import rostest
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Pose2D as Pose2DMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, Vector3
 from move_base_msgs.msg import MoveBaseAction
@@ -49,6 +50,14 @@ class Tracker:
         self.amcl_stamp = 0.0     # stamp (s) of the last amcl_pose
         rospy.Subscriber("ground_truth/odom", Odometry, self.on_truth, queue_size=50)
         rospy.Subscriber("amcl_pose", PoseWithCovarianceStamped, self.on_amcl, queue_size=5)
+        self.rates: list[dict[str, float]] = []    # amcl's diagnostics values while recording
+        rospy.Subscriber("/diagnostics", DiagnosticArray, self.on_diag, queue_size=10)
+
+    def on_diag(self, m: DiagnosticArray) -> None:
+        for st in m.status:
+            if "localization" in st.name and self.recording:
+                with self.lock:
+                    self.rates.append({kv.key: float(kv.value) for kv in st.values})
 
     def on_amcl(self, m: PoseWithCovarianceStamped) -> None:
         self.amcl_stamp = m.header.stamp.to_sec()
@@ -137,6 +146,14 @@ class AmclSimTest(unittest.TestCase):
         rms, worst = np.sqrt((e ** 2).mean(axis=0)), e.max(axis=0)
         print(f"[figure] tracking: {len(e)} samples, RMS {rms[0]:.3f} m / {rms[1]:.3f} rad, "
               f"max {worst[0]:.3f} m / {worst[1]:.3f} rad", flush=True)
+        with self.track.lock:
+            diag = [d for d in self.track.rates if "scans_per_s" in d][2:]    # skip the start-up seconds
+        scans = np.array([d["scans_per_s"] for d in diag])
+        updates = np.array([d["updates_per_s"] for d in diag])
+        cost = np.nanmean([d["update_ms_mean"] for d in diag])
+        print(f"[figure] amcl at run time: scans handled {scans.mean():.1f}/s (min {scans.min():.1f}), filter "
+              f"updates {updates.mean():.1f}/s (max {updates.max():.1f}), {cost:.1f} ms per update", flush=True)
+        self.assertGreaterEqual(float(np.median(scans)), 8.0, "amcl does not keep up with the 10 Hz scans")
         self.assertLessEqual(rms[0], 0.10)
         self.assertLessEqual(rms[1], 0.10)
         self.assertLessEqual(worst[0], 0.30)

@@ -19,6 +19,8 @@ the spread, the mean beam fit and the age of the last scan.
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,6 +157,9 @@ class Amcl:
         self.map_T_odom: Pose2D | None = None
         self.fit = math.nan                   # weighted mean beam fit of the last update (0..1)
         self.last_scan: float | None = None   # s, stamp of the last scan used
+        self.scan_times: deque[float] = deque(maxlen=200)     # stamps (s) of recent scans handled
+        self.update_times: deque[float] = deque(maxlen=200)   # stamps (s) of recent filter updates
+        self.update_ms: deque[float] = deque(maxlen=50)       # wall-clock cost (ms) of recent updates
 
     # ------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
@@ -229,7 +234,9 @@ class Amcl:
         if not (math.isfinite(rmax) and rmax > 0):
             raise ValueError(f"scan range_max must be a finite number > 0 m, got {rmax}")
         ran = False
+        self.scan_times.append(t)
         if self.force or self.moved(odom):
+            t0 = time.perf_counter()
             endpoints = select_beams(ranges, angles, max(rmin, 0.0), rmax, cfg.laser_max_beams, laser_pose)
             self._predict(odom)
             self.last_scan = t
@@ -245,6 +252,8 @@ class Amcl:
                 self.pf.resample(self.field)
             self.force = False
             ran = True
+            self.update_times.append(t)
+            self.update_ms.append((time.perf_counter() - t0) * 1e3)
         self.last_scan = t
         if self.estimate is not None and ran:
             self.map_T_odom = map_to_odom(self.estimate.pose, odom)
@@ -283,6 +292,9 @@ class Amcl:
                           std_yaw=math.sqrt(max(e.cov[2, 2], 0.0)))
         age = math.inf if self.last_scan is None else t - self.last_scan
         values["scan_age"] = age
+        values["scans_per_s"] = float(sum(1 for s in self.scan_times if t - 2.0 < s <= t)) / 2.0
+        values["updates_per_s"] = float(sum(1 for s in self.update_times if t - 2.0 < s <= t)) / 2.0
+        values["update_ms_mean"] = float(sum(self.update_ms) / len(self.update_ms)) if self.update_ms else math.nan
         if age > cfg.scan_timeout:
             return WARN, (f"no scan for {age:.1f} s: publishing the last map->odom, "
                           "the estimate drifts with odometry"), values
