@@ -1,4 +1,4 @@
-"""tf lookups as planar poses, with amcl's rules for stale odometry (ROS side: uses rospy and tf2_ros).
+"""tf lookups as planar poses, with amcl's pairing of scans and odometry (ROS side: uses rospy and tf2_ros).
 
 Kept out of the node so that it stays wiring only; the pure localization core never sees tf.
 """
@@ -22,19 +22,27 @@ class TfPoses:
         self.listener = tf2_ros.TransformListener(self.buffer)
         self.sensors: dict[str, Pose2D] = {}
 
-    def odom_pose(self, stamp: rospy.Time) -> Pose2D | None:
-        """odom->base at ``stamp``, else the latest one if at most ``tolerance`` s older; else None (warned)."""
-        err = ""
-        for at, wait in ((stamp, 0.1), (rospy.Time(0), 0.0)):
-            try:
-                t = self.buffer.lookup_transform(self.odom_frame, self.base_frame, at, rospy.Duration(wait))
-            except TF_ERRORS as exc:
-                err = str(exc)
-                continue
-            lag = (stamp - t.header.stamp).to_sec()
-            if lag <= self.tolerance:
-                return transform_to_pose2d(t)
-            err = f"it is {lag:.2f} s older than the scan (> transform_tolerance {self.tolerance} s)"
+    def odom_pose(self, stamp: rospy.Time | None) -> Pose2D | None:
+        """odom->base at ``stamp`` (waiting up to ``tolerance`` s for it), or the latest for None.
+
+        amcl's rule: a scan is only paired with odometry of its own time (interpolated);
+        pairing it with an older pose would turn the robot's motion in between into a
+        localization error.  If odometry does not reach the stamp within ``tolerance``
+        the scan is not used (warned, with the odometry's age).
+        """
+        try:
+            if stamp is None:
+                return transform_to_pose2d(self.buffer.lookup_transform(self.odom_frame, self.base_frame,
+                                                                        rospy.Time(0)))
+            return transform_to_pose2d(self.buffer.lookup_transform(self.odom_frame, self.base_frame, stamp,
+                                                                    rospy.Duration(self.tolerance)))
+        except TF_ERRORS as exc:
+            err = str(exc)
+        try:
+            latest = self.buffer.lookup_transform(self.odom_frame, self.base_frame, rospy.Time(0)).header.stamp
+            err = f"the latest is {(stamp - latest).to_sec():.2f} s older than the scan" if stamp else err
+        except TF_ERRORS:
+            pass
         rospy.logwarn_throttle_identical(5.0, f"no usable tf {self.odom_frame}->{self.base_frame}: {err}")
         return None
 
