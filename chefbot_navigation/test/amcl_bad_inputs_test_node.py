@@ -66,6 +66,7 @@ class AmclBadInputsTest(unittest.TestCase):
         cls.buffer = tf2_ros.Buffer()
         cls.listener = tf2_ros.TransformListener(cls.buffer)
         cls.odom = Pose2D(1.0, -0.5, 0.2)    # odometry frame unrelated to the map
+        cls.odom_paused = False
         threading.Thread(target=cls.odom_loop, daemon=True).start()
         rospy.wait_for_service("global_localization", 60.0)
 
@@ -73,7 +74,8 @@ class AmclBadInputsTest(unittest.TestCase):
     def odom_loop(cls) -> None:
         rate = rospy.Rate(20)
         while not rospy.is_shutdown():
-            cls.tf.sendTransform(pose2d_to_transform(cls.odom, rospy.Time.now(), "odom", "base_footprint"))
+            if not cls.odom_paused:
+                cls.tf.sendTransform(pose2d_to_transform(cls.odom, rospy.Time.now(), "odom", "base_footprint"))
             rate.sleep()
 
     @classmethod
@@ -164,7 +166,13 @@ class AmclBadInputsTest(unittest.TestCase):
         wait_until(lambda: any("no scan" in msg for _, msg in self.diag), 30.0, "'no scan' diagnostics")
         t2 = self.buffer.lookup_transform("map", "odom", rospy.Time(0), rospy.Duration(5.0))
         self.assertGreater(t2.header.stamp.to_sec(), rospy.Time.now().to_sec())
-        # 8. global localization spreads the particles
+        # 8. odometry stops (driver died): scans are not paired with stale odometry, and it says so
+        type(self).odom_paused = True
+        time.sleep(0.5)
+        self.feed(self.good_ranges, seconds=1.5)
+        type(self).odom_paused = False
+        wait_until(lambda: self.logged("no usable tf odom->base_footprint"), 30.0, "stale-odometry warning")
+        # 9. global localization spreads the particles
         rospy.ServiceProxy("global_localization", Empty)()
         self.feed(self.good_ranges, seconds=0.5)
         self.assertTrue(self.logged("global localization started"))
