@@ -177,3 +177,18 @@ def test_config_rejects_bad_values_by_name() -> None:
         AmclConfig(odom_alpha2=-1.0)
     with pytest.raises(ValueError, match="recovery_alpha_fast"):
         AmclConfig(recovery_alpha_slow=0.2, recovery_alpha_fast=0.1)
+
+
+def test_shipped_param_file_is_complete_and_valid() -> None:
+    """param/amcl.yaml: every key is a parameter the node reads, and the values pass validation."""
+    import dataclasses
+    from pathlib import Path
+
+    import yaml
+
+    params = yaml.safe_load((Path(__file__).resolve().parents[2] / "param" / "amcl.yaml").read_text())
+    fields = {f.name for f in dataclasses.fields(AmclConfig)}
+    assert set(params) <= fields, set(params) - fields
+    assert set(params) == fields, f"not pinned in amcl.yaml: {fields - set(params)}"
+    cfg = AmclConfig(**params)
+    assert cfg.laser_max_beams == 60 and cfg.min_particles == 500 and cfg.max_particles == 2000
