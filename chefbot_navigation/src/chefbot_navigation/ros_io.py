@@ -5,11 +5,23 @@ Time stamps are passed in by the caller (a ``rospy.Time`` or ``genpy.Time``).
 from __future__ import annotations
 
 import array
+import math
 import threading
 
 import numpy as np
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TransformStamped, Twist
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import (
+    Point,
+    Pose,
+    PoseArray,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    TransformStamped,
+    Twist,
+)
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
+from sensor_msgs.msg import LaserScan
 
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
 from chefbot_common.grid import GridInfo, OccupancyMap
@@ -157,3 +169,58 @@ class CommandGate:
         """Allow commands again (a new goal was accepted)."""
         with self.lock:
             self.halted = False
+
+
+# (row, col) of x, y, yaw in a 6x6 ROS pose covariance (x y z roll pitch yaw)
+_COV_INDEX = (0, 1, 5)
+
+
+def scan_arrays(msg: LaserScan) -> tuple[np.ndarray, np.ndarray]:
+    """(ranges, angles) of a LaserScan as float arrays (rad in the scan frame); ValueError if unusable."""
+    ranges = np.asarray(msg.ranges, dtype=np.float64)
+    if ranges.size == 0:
+        raise ValueError("scan has no ranges")
+    if not (math.isfinite(msg.angle_min) and math.isfinite(msg.angle_increment) and msg.angle_increment != 0.0):
+        raise ValueError(f"scan angle_min {msg.angle_min} / angle_increment {msg.angle_increment} unusable")
+    return ranges, msg.angle_min + msg.angle_increment * np.arange(ranges.size)
+
+
+def pose_cov_to_msg(pose: Pose2D, cov: np.ndarray, stamp, frame_id: str) -> PoseWithCovarianceStamped:
+    """PoseWithCovarianceStamped from a planar pose and its 3x3 (x, y, yaw) covariance (m², rad²)."""
+    msg = PoseWithCovarianceStamped()
+    msg.header.stamp, msg.header.frame_id = stamp, frame_id
+    msg.pose.pose = pose2d_to_pose(pose)
+    c = [0.0] * 36
+    for i, a in enumerate(_COV_INDEX):
+        for j, b in enumerate(_COV_INDEX):
+            c[6 * a + b] = float(cov[i, j])
+    msg.pose.covariance = c
+    return msg
+
+
+def msg_to_pose_cov(msg: PoseWithCovarianceStamped) -> tuple[Pose2D, np.ndarray]:
+    """Planar pose and 3x3 covariance of a PoseWithCovarianceStamped (e.g. RViz's 2D Pose Estimate)."""
+    c = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)
+    return pose_to_pose2d(msg.pose.pose), c[np.ix_(_COV_INDEX, _COV_INDEX)]
+
+
+def particles_to_msg(particles: np.ndarray, stamp, frame_id: str) -> PoseArray:
+    """PoseArray of (N, 3) particles (x m, y m, yaw rad)."""
+    msg = PoseArray()
+    msg.header.stamp, msg.header.frame_id = stamp, frame_id
+    half = 0.5 * particles[:, 2]
+    sz, cz = np.sin(half), np.cos(half)
+    msg.poses = [Pose(Point(x, y, 0.0), Quaternion(0.0, 0.0, s, c))
+                 for x, y, s, c in zip(particles[:, 0].tolist(), particles[:, 1].tolist(), sz.tolist(), cz.tolist(),
+                                       strict=True)]
+    return msg
+
+
+def diagnostics_msg(name: str, hardware_id: str, level: int, message: str, values: dict[str, float],
+                    stamp) -> DiagnosticArray:
+    """A DiagnosticArray with one status (level 0 OK, 1 WARN, 2 ERROR)."""
+    status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
+                              values=[KeyValue(k, f"{v:.4g}") for k, v in values.items()])
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = stamp
+    return msg

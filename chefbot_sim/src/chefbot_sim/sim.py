@@ -36,6 +36,7 @@ from chefbot_sim.camera import RgbdRenderer, RgbFrame
 from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
+from chefbot_sim.wheel_noise import WheelNoise, measure_wheels, quantise
 from chefbot_sim.world import Shape, World
 from chefbot_vision.cloud import Pinhole
 
@@ -78,6 +79,11 @@ class SimOptions:
     imu_relative_yaw: bool = True      # IMU yaw 0 at the start pose, as the real MPU6050's DMP
     imu_gyro_bias: float = imu_model.DEFAULT_GYRO_BIAS              # rad/s, z-gyro bias at start
     imu_gyro_bias_drift: float = imu_model.DEFAULT_GYRO_BIAS_DRIFT  # rad/s/sqrt(s), bias random walk
+    # wheel odometry errors (chefbot_sim.wheel_noise; 0 = perfect odometry); ground truth unaffected
+    wheel_radius_error_left: float = 0.0   # fraction: real rolling radius / nominal - 1
+    wheel_radius_error_right: float = 0.0  # fraction
+    wheel_slip_stddev: float = 0.0         # m per sqrt(m) of wheel travel
+    wheel_encoder_counts: int = 0          # plugin mode: counts/rev the odometry is quantised to (0 = none)
     time_step: float = 1.0 / 240.0
 
     def battery_config(self) -> battery.BatteryConfig:
@@ -110,6 +116,15 @@ class SimOptions:
             raise SimConfigError("rgb_width and rgb_height must be >= 1")
         if self.registered_stride < 1:
             raise SimConfigError(f"registered_stride must be >= 1, got {self.registered_stride}")
+        try:
+            self.wheel_noise.validate()
+        except ValueError as e:
+            raise SimConfigError(str(e)) from None
+
+    @property
+    def wheel_noise(self) -> WheelNoise:
+        return WheelNoise(self.wheel_radius_error_left, self.wheel_radius_error_right, self.wheel_slip_stddev,
+                          self.wheel_encoder_counts)
 
 
 @dataclass(frozen=True)
@@ -195,6 +210,9 @@ class _State:
     battery_soc: float = 1.0                 # state of charge 0..1 (battery.py)
     battery_current: float = 0.0             # A, last computed draw
     rng_state: dict | None = None
+    wheel_true_prev: tuple[float, float] = (0.0, 0.0)   # true wheel angles at the last measurement
+    wheel_measured: tuple[float, float] = (0.0, 0.0)    # what the encoders report (rad)
+    wheel_rng_state: dict | None = None
 
 
 class Simulator:
@@ -254,6 +272,10 @@ class Simulator:
         self._battery = self.options.battery_config()
         self.s.battery_soc = self._battery.initial_soc
         self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_true_prev = self.s.wheel_measured = self.s.wheel_prev
+        self.s.wheel_prev = tuple(quantise(a, self.options.wheel_encoder_counts) for a in self.s.wheel_prev)
+        self.wheel_noise = self.options.wheel_noise
+        self.wheel_rng = np.random.default_rng([self.options.seed, 1])   # own stream: other noise unchanged
         self._initial = self.bullet.save_state()
         self.firmware: FirmwareDrive | None = None
         if self.drive == "firmware":
@@ -348,7 +370,7 @@ class Simulator:
             if fw is not None:
                 ang, vel = self.bullet.joint_states(self._wheels)
                 self.s.wheel_speed = (float(vel[0]), float(vel[1]))
-                fw.after_physics(ang, self.s.time)
+                fw.after_physics(self._measure_wheels(ang), self.s.time)
                 if self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
                     self._discharge(BATTERY_STEPS * dt)
             if self.s.time + 1e-9 < next_due:
@@ -420,13 +442,29 @@ class Simulator:
         return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
                 "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_from_quaternion(*quat)}
 
+    def _measure_wheels(self, true_angles) -> tuple[float, float]:
+        """The wheel angles (rad) the encoders report now (see chefbot_sim.wheel_noise)."""
+        now = (float(true_angles[0]), float(true_angles[1]))
+        if self.wheel_noise.active:
+            self.s.wheel_measured = measure_wheels(self.wheel_noise, self.wheel_rng, self.s.wheel_true_prev, now,
+                                                   self.s.wheel_measured, self.params.drive.wheel_radius)
+        else:
+            self.s.wheel_measured = (self.s.wheel_measured[0] + now[0] - self.s.wheel_true_prev[0],
+                                     self.s.wheel_measured[1] + now[1] - self.s.wheel_true_prev[1])
+        self.s.wheel_true_prev = now
+        return self.s.wheel_measured
+
     def _odom(self) -> OdomData:
         d = self.params.drive
-        ang, vel = self.bullet.joint_states(self._wheels)
+        true_ang, vel = self.bullet.joint_states(self._wheels)
+        counts = self.wheel_noise.encoder_counts
+        ang = [quantise(a, counts) for a in self._measure_wheels(true_ang)]
         pl, pr = self.s.wheel_prev
         dl = (ang[0] - pl) * d.wheel_radius
         dr = (ang[1] - pr) * d.wheel_radius
         self.s.wheel_prev = (float(ang[0]), float(ang[1]))
+        wn = self.wheel_noise
+        vel = (vel[0] / (1.0 + wn.radius_error_left), vel[1] / (1.0 + wn.radius_error_right))
         ds, dth = (dl + dr) / 2.0, (dr - dl) / d.wheel_separation
         x, y, th = self.s.odom
         x += ds * math.cos(th + dth / 2.0)
@@ -577,10 +615,12 @@ class Simulator:
 
     def _resync_wheels(self) -> None:
         """Wheel angles changed outside physics: no odometry, no encoder edges for that."""
-        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_true_prev = tuple(float(a) for a in self.bullet.joint_states(self._wheels)[0])
+        counts = self.wheel_noise.encoder_counts
+        self.s.wheel_prev = tuple(quantise(a, counts) for a in self.s.wheel_measured)
         self.s.wheel_speed = (0.0, 0.0)
         if self.firmware is not None:
-            self.firmware.resync(self.s.wheel_prev)
+            self.firmware.resync(self.s.wheel_measured)
 
     def teleport(self, pose: Pose2D) -> None:
         """Put the robot at ``pose`` at rest; odometry (and in firmware mode the
@@ -617,6 +657,7 @@ class Simulator:
         st = _State(**{k: getattr(self.s, k) for k in self.s.__dataclass_fields__})
         st.due = dict(self.s.due)
         st.rng_state = self.rng.bit_generator.state
+        st.wheel_rng_state = self.wheel_rng.bit_generator.state
         return self.bullet.save_state(), st, list(self._spawned)
 
     def restore(self, snap: tuple[int, _State, list[Shape]]) -> None:
@@ -627,6 +668,7 @@ class Simulator:
         self.s = _State(**{k: getattr(st, k) for k in st.__dataclass_fields__})
         self.s.due = dict(st.due)
         self.rng.bit_generator.state = st.rng_state
+        self.wheel_rng.bit_generator.state = st.wheel_rng_state
         target = self.s.wheel_target
         self.bullet.set_joint_velocities(self._wheels, target, self.params.drive.torque)
 

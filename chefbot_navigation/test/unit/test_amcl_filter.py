@@ -1,0 +1,194 @@
+"""AMCL core, whole filter on synthetic scenes: tracking, global localization, kidnap, bad inputs,
+map->odom composition.  Statistical outcomes use fixed seeds; bounds are loose (figures: make bench)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from amcl_scenes import cast, drifting_odometry, lawnmower, room_map
+
+from chefbot_navigation.amcl.localizer import OK, WARN, Amcl, AmclConfig
+from chefbot_navigation.amcl.sensor import MapError
+from chefbot_navigation.geometry import Pose2D, wrap_angle
+from chefbot_navigation.grid import GridInfo, OccupancyMap
+
+CAMERA = np.linspace(-0.506, 0.506, 160)        # the depth camera's ~58 degree band
+LIDAR = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+LASER = Pose2D(0.1, 0.0, 0.0)                   # scan frame in the base frame
+ROOM = room_map()
+
+
+def scan_from(truth: Pose2D, angles: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    r = cast(ROOM, truth.compose(LASER), angles, 8.0)
+    r = r + rng.normal(0.0, 0.01, len(r))
+    r[r < 0.45] = np.nan                         # too close for the depth camera
+    return r
+
+
+def run(amcl: Amcl, truth: list[Pose2D], odom: list[Pose2D], angles: np.ndarray, seed: int = 0,
+        t0: float = 0.0) -> list[tuple[float, float]]:
+    """Feed every pose as one scan at 10 Hz; (position error m, yaw error rad) after each."""
+    rng = np.random.default_rng(seed)
+    errors = []
+    for k, (tr, od) in enumerate(zip(truth, odom, strict=True)):
+        r = scan_from(tr, angles, rng)
+        try:
+            amcl.update(od, r, angles, 0.45, 8.0, LASER, t0 + 0.1 * k)
+        except ValueError:
+            pass                                  # a scan without valid beams: odometry only
+        est = amcl.map_T_odom.compose(od)
+        errors.append((math.hypot(est.x - tr.x, est.y - tr.y), abs(wrap_angle(est.yaw - tr.yaw))))
+    return errors
+
+
+def config(**kw) -> AmclConfig:
+    """amcl's laser settings (param/amcl.yaml), odometry noise of a decent wheel odometry."""
+    alphas = {f"odom_alpha{i}": 0.02 for i in range(1, 5)}
+    return AmclConfig(**{"seed": 1, **alphas, **kw})
+
+
+def test_tracks_a_route_with_drifting_odometry_through_the_camera() -> None:
+    truth = lawnmower(ROOM)
+    odom = drifting_odometry(truth, seed=2)
+    start = truth[0]
+    amcl = Amcl(config(initial_pose_x=start.x + 0.1, initial_pose_y=start.y - 0.1, initial_pose_a=start.yaw + 0.05,
+                       initial_cov_xx=0.02, initial_cov_yy=0.02, initial_cov_aa=0.01))
+    amcl.set_map(ROOM)
+    errors = np.array(run(amcl, truth, odom, CAMERA))
+    settled = errors[20:]
+    rms = np.sqrt((settled ** 2).mean(axis=0))
+    # odometry alone ends far off: the filter is doing the work
+    dead = truth[0].compose(odom[0].inverse().compose(odom[-1]))
+    assert math.hypot(dead.x - truth[-1].x, dead.y - truth[-1].y) > 0.5
+    assert rms[0] < 0.12 and rms[1] < 0.06, rms
+    assert settled[:, 0].max() < 0.4
+    assert amcl.updates > 30
+
+
+def test_map_to_odom_composes_estimate_and_odometry() -> None:
+    truth = lawnmower(ROOM)[:40]
+    odom = drifting_odometry(truth, seed=3)
+    amcl = Amcl(config(initial_pose_x=truth[0].x, initial_pose_y=truth[0].y, initial_pose_a=truth[0].yaw))
+    amcl.set_map(ROOM)
+    run(amcl, truth, odom, CAMERA)
+    # after an update: map->odom = map->base * (odom->base)^-1 at that scan
+    rng = np.random.default_rng(0)
+    amcl.request_nomotion_update()
+    assert amcl.update(odom[-1], scan_from(truth[-1], CAMERA, rng), CAMERA, 0.45, 8.0, LASER, 100.0)
+    back = amcl.map_T_odom.compose(odom[-1])
+    e = amcl.estimate.pose
+    assert (back.x, back.y) == pytest.approx((e.x, e.y), abs=1e-9)
+    assert wrap_angle(back.yaw - e.yaw) == pytest.approx(0.0, abs=1e-9)
+
+
+def spin_in_place(at: Pose2D, seconds: float, rate: float = 0.6) -> list[Pose2D]:
+    return [Pose2D(at.x, at.y, wrap_angle(at.yaw + rate * 0.1 * k)) for k in range(int(seconds * 10))]
+
+
+@pytest.mark.parametrize(("angles", "seconds"), [(LIDAR, 6.0), (CAMERA, 30.0)], ids=["lidar360", "camera58"])
+def test_global_localization_while_rotating(angles: np.ndarray, seconds: float) -> None:
+    at = Pose2D(2.6, 2.9, 0.3)
+    truth = spin_in_place(at, seconds)
+    odom = drifting_odometry(truth, seed=4)
+    amcl = Amcl(config(update_min_a=0.1))
+    amcl.set_map(ROOM)
+    assert amcl.global_localization()
+    assert amcl.estimate.spread > 1.0
+    errors = run(amcl, truth, odom, angles)
+    assert errors[-1][0] < 0.25 and errors[-1][1] < 0.25, errors[-1]
+    assert amcl.estimate.spread < 0.25
+
+
+def test_kidnapped_robot_is_recovered_with_the_alphas_on() -> None:
+    truth = lawnmower(ROOM)
+    odom = drifting_odometry(truth, seed=5)
+    amcl = Amcl(config(initial_pose_x=truth[0].x, initial_pose_y=truth[0].y, initial_pose_a=truth[0].yaw))
+    amcl.set_map(ROOM)
+    half = len(truth) // 2
+    run(amcl, truth[:half], odom[:half], LIDAR)
+    assert amcl.pf.w_diff == 0.0
+    # kidnap: carried 3 m away, odometry does not notice
+    shift = Pose2D(3.0, 0.0, 0.0) if truth[half].x < 4.0 else Pose2D(-3.0, 0.0, 0.0)
+    moved = [Pose2D(p.x + shift.x, p.y + shift.y, p.yaw) for p in spin_in_place(truth[half], 40.0)]
+    errors = run(amcl, moved, drifting_odometry(moved, seed=6), LIDAR, t0=100.0)
+    assert errors[5][0] > 1.0                 # still lost just after the kidnap
+    assert errors[-1][0] < 0.25 and errors[-1][1] < 0.25, errors[-1]
+
+
+def test_without_recovery_the_kidnap_is_reported_not_hidden() -> None:
+    truth = spin_in_place(Pose2D(2.6, 2.9, 0.0), 8.0)
+    amcl = Amcl(config(recovery_alpha_slow=0.0, recovery_alpha_fast=0.0,
+                       initial_pose_x=6.0, initial_pose_y=4.2, initial_pose_a=-2.0,
+                       initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01))
+    amcl.set_map(ROOM)
+    run(amcl, truth, drifting_odometry(truth, seed=7), CAMERA)
+    level, message, values = amcl.diagnostics(8.0)
+    assert level == WARN and "fit" in message, (message, values)
+    assert values["mean_beam_fit"] < 0.5
+
+
+def test_initial_pose_reinitialises_and_off_map_is_refused() -> None:
+    amcl = Amcl(config())
+    amcl.set_map(ROOM)
+    assert amcl.set_initial_pose(Pose2D(3.0, 2.5, 1.0), np.diag([0.01, 0.01, 0.001])) is None
+    assert amcl.estimate.pose.x == pytest.approx(3.0, abs=0.02) and amcl.estimate.spread < 0.15
+    err = amcl.set_initial_pose(Pose2D(30.0, 2.5, 1.0), np.eye(3) * 0.01)
+    assert err is not None and "off the map" in err
+    assert amcl.estimate.pose.x == pytest.approx(3.0, abs=0.02)      # unchanged
+    assert "not finite" in amcl.set_initial_pose(Pose2D(math.nan, 0, 0), np.eye(3))
+
+
+def test_bad_scans_and_maps_raise_clear_errors() -> None:
+    amcl = Amcl(config())
+    with pytest.raises(MapError, match="no map"):
+        amcl.update(Pose2D(), np.ones(5), np.zeros(5), 0.1, 8.0, LASER, 0.0)
+    assert amcl.diagnostics(0.0)[0] == 2
+    with pytest.raises(MapError, match="no occupied"):
+        amcl.set_map(OccupancyMap(GridInfo(0.05, 20, 20), np.zeros((20, 20), np.int8)))
+    amcl.set_map(ROOM)
+    with pytest.raises(ValueError, match="no valid beam"):
+        amcl.update(Pose2D(), np.full(160, np.nan), CAMERA, 0.45, 8.0, LASER, 0.0)
+    with pytest.raises(ValueError, match="range_max"):
+        amcl.update(Pose2D(), np.ones(160), CAMERA, 0.45, math.inf, LASER, 0.0)
+
+
+def test_no_scans_the_spread_grows_with_driving_and_diagnostics_say_so() -> None:
+    truth = lawnmower(ROOM)[:60]
+    odom = drifting_odometry(truth, seed=8)
+    amcl = Amcl(config(initial_pose_x=truth[0].x, initial_pose_y=truth[0].y, initial_pose_a=truth[0].yaw))
+    amcl.set_map(ROOM)
+    run(amcl, truth[:20], odom[:20], CAMERA)
+    before = amcl.estimate.spread
+    for k, od in enumerate(odom[20:]):
+        amcl.predict_only(od, 2.0 + 0.1 * k)
+    assert amcl.estimate.spread > before
+    level, message, _ = amcl.diagnostics(10.0)
+    assert level == WARN and "no scan" in message
+    assert amcl.diagnostics(amcl.last_scan)[0] in (OK, WARN)
+
+
+def test_config_rejects_bad_values_by_name() -> None:
+    with pytest.raises(ValueError, match="min_particles"):
+        AmclConfig(min_particles=3000)
+    with pytest.raises(ValueError, match="laser_model_type"):
+        AmclConfig(laser_model_type="beam")
+    with pytest.raises(ValueError, match="odom_alpha2"):
+        AmclConfig(odom_alpha2=-1.0)
+    with pytest.raises(ValueError, match="recovery_alpha_fast"):
+        AmclConfig(recovery_alpha_slow=0.2, recovery_alpha_fast=0.1)
+
+
+def test_shipped_param_file_is_complete_and_valid() -> None:
+    """param/amcl.yaml: every key is a parameter the node reads, and the values pass validation."""
+    import dataclasses
+    from pathlib import Path
+
+    import yaml
+
+    params = yaml.safe_load((Path(__file__).resolve().parents[2] / "param" / "amcl.yaml").read_text())
+    fields = {f.name for f in dataclasses.fields(AmclConfig)}
+    assert set(params) <= fields, set(params) - fields
+    assert set(params) == fields, f"not pinned in amcl.yaml: {fields - set(params)}"
+    cfg = AmclConfig(**params)
+    assert cfg.laser_max_beams == 60 and cfg.min_particles == 500 and cfg.max_particles == 2000
