@@ -22,12 +22,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.map_io import load_map
 from chefbot_navigation.amcl.localizer import Amcl, AmclConfig
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.map_io import load_map
 
 ROOT = Path(__file__).resolve().parents[2]
 WORLDS = ROOT / "chefbot_sim" / "worlds"
+MAPS = ROOT / "chefbot_navigation" / "maps"
 PARAMS = ROOT / "chefbot_navigation" / "param" / "amcl.yaml"
 SIM_PARAMS = ROOT / "chefbot_sim" / "param" / "sim.yaml"
 SCAN_PARAMS = ROOT / "chefbot_sim" / "param" / "depth_to_scan.yaml"
@@ -45,9 +46,9 @@ class SimRig:
 
     def __init__(self, start: Pose2D, seed: int = 0) -> None:
         from chefbot_bringup.depth_scan import Intrinsics, ScanConfig
+        from chefbot_common.geometry import Pose2D as WorldPose
         from chefbot_description.model import expand_xacro
         from chefbot_sim.sim import SimOptions, Simulator
-        from chefbot_sim.world import Pose2D as WorldPose
         from chefbot_sim.world import load_world
 
         sp = yaml.safe_load(SIM_PARAMS.read_text())
@@ -88,7 +89,7 @@ def update_cost(n: int, repeats: int) -> float:
     finally:
         rig.sim.close()
     amcl = Amcl(amcl_config(min_particles=n, max_particles=n, initial_cov_xx=0.05, initial_cov_yy=0.05))
-    amcl.set_map(load_map(WORLDS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
     rng = np.random.default_rng(0)
     times = []
     odom = Pose2D()
@@ -119,14 +120,14 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
     while driving (odometry does not notice); ``recovery_s`` is the sim time until amcl's
     error is back within 0.25 m / 0.25 rad and stays there for 2 s.
     """
-    from chefbot_sim.world import Pose2D as WorldPose
-    tables = {k: Pose2D(**v) for k, v in yaml.safe_load((WORLDS / "hotel_tables.yaml").read_text())["poses"].items()}
+    from chefbot_common.geometry import Pose2D as WorldPose
+    tables = {k: Pose2D(**v) for k, v in yaml.safe_load((MAPS / "hotel_tables.yaml").read_text())["poses"].items()}
     home = tables["home"]
     rig = SimRig(home, seed)
     # the sim spawns the robot exactly at home: initial covariance as navigation_demo.launch gives it
     amcl = Amcl(amcl_config(initial_pose_x=home.x, initial_pose_y=home.y, initial_pose_a=home.yaw, seed=seed,
                             initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01, **(overrides or {})))
-    amcl.set_map(load_map(WORLDS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
     errors, costs, legs = [], [], route(tables)
     if quick:
         legs = legs[:6]
@@ -192,7 +193,7 @@ def global_convergence(seed: int = 0, limit: float = 60.0) -> float:
     is within 0.25 m / 0.25 rad and stays there for 2 s (inf if not within ``limit``)."""
     rig = SimRig(Pose2D(0.0, 0.0, 0.0), seed)
     amcl = Amcl(amcl_config(seed=seed))
-    amcl.set_map(load_map(WORLDS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
     amcl.global_localization()
     sim, ok_since = rig.sim, None
     t0 = sim.time

@@ -26,10 +26,10 @@ from std_srvs.srv import Empty
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [HERE, os.path.join(HERE, "unit")]
 from amcl_scenes import cast, room_map  # noqa: E402
-from move_base_test_node import wait_until  # noqa: E402  (shared rostest helper)
 
-from chefbot_navigation.geometry import Pose2D  # noqa: E402
-from chefbot_navigation.grid import GridInfo, OccupancyMap  # noqa: E402
+from chefbot_common.geometry import Pose2D  # noqa: E402
+from chefbot_common.grid import GridInfo, OccupancyMap  # noqa: E402
+from chefbot_common.rostest_helpers import wait_for as wait_until  # noqa: E402
 from chefbot_navigation.ros_io import (  # noqa: E402
     msg_to_pose_cov,
     occupancy_to_msg,

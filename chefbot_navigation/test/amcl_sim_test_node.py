@@ -25,12 +25,14 @@ from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import Odometry
 from std_srvs.srv import Empty
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle, yaw_from_quaternion
+from chefbot_common.geometry import Pose2D, wrap_angle, yaw_from_quaternion
+from chefbot_common.tables import load_tables
 from chefbot_navigation.ros_io import pose_cov_to_msg, transform_to_pose2d
-from chefbot_sim.world import load_tables
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from move_base_test_node import make_goal, wait_until
+from move_base_test_node import make_goal
+
+from chefbot_common.rostest_helpers import wait_for as wait_until
 
 PKG = "chefbot_navigation"
 WALL = 900.0

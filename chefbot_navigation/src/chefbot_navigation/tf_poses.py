@@ -7,7 +7,7 @@ from __future__ import annotations
 import rospy
 import tf2_ros
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_io import transform_to_pose2d
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)

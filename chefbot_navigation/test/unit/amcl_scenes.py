@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import GridInfo, OccupancyMap
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
 
 
 def room_map(width_m: float = 8.0, height_m: float = 6.0, res: float = 0.05) -> OccupancyMap:

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from amcl_scenes import cast, drifting_odometry, lawnmower, room_map
 
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.amcl.localizer import OK, WARN, Amcl, AmclConfig
 from chefbot_navigation.amcl.sensor import MapError
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import GridInfo, OccupancyMap
 
 CAMERA = np.linspace(-0.506, 0.506, 160)        # the depth camera's ~58 degree band
 LIDAR = np.linspace(-math.pi, math.pi, 360, endpoint=False)

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.amcl.motion import (
     DiffMotionNoise,
     apply_deltas,
@@ -17,8 +19,6 @@ from chefbot_navigation.amcl.motion import (
 )
 from chefbot_navigation.amcl.resample import clusters, kld_bound, kld_count, low_variance_indices, weighted_mean_cov
 from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import GridInfo, OccupancyMap
 
 NOISE = DiffMotionNoise(0.05, 0.02, 0.03, 0.01)
 

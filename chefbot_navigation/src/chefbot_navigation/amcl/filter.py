@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from chefbot_common.geometry import Pose2D
 from chefbot_navigation.amcl.motion import DiffMotionNoise, sample_motion
 from chefbot_navigation.amcl.resample import Cluster, clusters, kld_count, low_variance_indices, weighted_mean_cov
 from chefbot_navigation.amcl.sensor import LikelihoodField
-from chefbot_navigation.geometry import Pose2D
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle
+from chefbot_common.geometry import Pose2D, wrap_angle
 
 MIN_TRANS_FOR_ROT1 = 0.01  # m: below this the heading of the translation is noise
 

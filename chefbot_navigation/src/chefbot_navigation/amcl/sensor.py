@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import OccupancyMap
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import OccupancyMap
 
 
 class MapError(ValueError):
