@@ -554,14 +554,22 @@ class Simulator:
         nearest coarse sample; with none they are NaN; with full every pixel is exact.
         """
         cam, p = self.depth_camera, self.params.depth_camera
-        if self.dense_depth:
-            return self._depth_noise_and_range(self.rgbd.render_depth())
         pos, rot = self.bullet.frame_pose(p.depth_frame)
-        img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
-        t_all = self._caster.cast(pos, self._dirs_all @ rot.T, p.max_range)
+        if self.dense_depth:
+            # every pixel rendered (for the point clouds), but the scan band stays the exact
+            # per-pixel ray cast, so depth_to_scan sees the same ranges either way (the
+            # renderer's depth differs at object edges and shifted amcl's fit)
+            img = self.rgbd.render_depth()
+            dirs = self._dirs_exact
+        else:
+            img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
+            dirs = self._dirs_all
+        t_all = self._caster.cast(pos, dirs @ rot.T, p.max_range)
         n_exact = len(self._dirs_exact)
         t = t_all[:n_exact]
         img[self._depth_rows[0]:self._depth_rows[-1] + 1, :] = t.reshape(len(self._depth_rows), cam.width)
+        if self.dense_depth:
+            return self._depth_noise_and_range(img)
         if self._coarse is not None:
             rows, cols = self._coarse
             tc = t_all[n_exact:].reshape(len(rows), len(cols))
