@@ -56,9 +56,17 @@ class SlamConfig:
     match_xy: float = 0.25               # m, tracking search half-window
     match_yaw: float = 0.25              # rad, tracking search half-window
     match_yaw_step: float = 0.0175       # rad, coarse angle step
+    srr: float = 0.1                     # m/m, odometry translation error per metre driven
+    srt: float = 0.05                    # m/rad, translation error per radian turned
+    str: float = 0.1                     # rad/m, rotation error per metre driven
+    stt: float = 0.3                     # rad/rad, rotation error per radian turned (wheel slip)
+    beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
+    sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
+    sigma_yaw_min: float = 0.02          # rad
     min_match_score: float = 0.25        # mean likelihood below which the odometry prediction is kept
     min_match_beams: int = 10            # fewer obstacle beams: keep the prediction
     local_keyframes: int = 30            # keyframes of the tracking map
+    local_radius: float = 4.0            # m; older keyframes this close also join the tracking map (0: off)
     loop_closure: bool = True
     loop_search_radius: float = 2.5      # m, candidate keyframes within this distance
     loop_min_travel: float = 5.0         # m driven since the candidate
@@ -75,28 +83,32 @@ class SlamConfig:
     l_free: float = -0.7                 # log-odds added per pass
     l_clamp: float = 4.0                 # |log-odds| read out at most (clamp at read time)
 
+    def __post_init__(self) -> None:
+        self.validate()
+
     def validate(self) -> None:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
                     "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
-                    "loop_sigma_xy", "loop_sigma_yaw",
+                    "loop_sigma_xy", "loop_sigma_yaw", "beams_per_dof", "sigma_xy_min", "sigma_yaw_min",
                     "l_occ", "l_clamp")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"parameter {name} must be a finite number > 0, got {v!r}")
-        for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel"):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "srr", "srt", "str", "stt",
+                     "local_radius"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"parameter {name} must be a finite number >= 0, got {v!r}")
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         if not self.l_free < 0:
-            raise ValueError(f"parameter l_free must be < 0, got {self.l_free}")
+            raise ValueError(f"l_free must be < 0, got {self.l_free}")
         if not (self.xmax > self.xmin and self.ymax > self.ymin):
-            raise ValueError(f"parameters xmin..xmax / ymin..ymax must be non-empty, got "
+            raise ValueError(f"xmin must be < xmax and ymin < ymax, got "
                              f"x {self.xmin}..{self.xmax}, y {self.ymin}..{self.ymax}")
         for name in ("local_keyframes", "loop_every", "min_match_beams"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
-                raise ValueError(f"parameter {name} must be an integer >= 1, got {getattr(self, name)!r}")
+                raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
 
 
 @dataclass
@@ -185,33 +197,46 @@ class Slam:
             return predicted
         pose = predicted
         if c.scan_matching:
-            pose = self._track(scan, predicted)
+            sxy = c.sigma_xy_min + c.srr * moved + c.srt * abs(rel.yaw)
+            syaw = c.sigma_yaw_min + c.str * moved + c.stt * abs(rel.yaw)
+            pose = self._track(scan, predicted, (sxy, syaw))
         self._add_keyframe(t, scan, odom, pose, last.travel + moved)
         self._scans.append((t, len(self.keyframes) - 1, odom))
-        if c.loop_closure and c.scan_matching:
+        if c.loop_closure:
             self._since_loop += 1
             if self._since_loop >= c.loop_every:
                 self._since_loop = 0
                 self._close_loop()
         return self.graph.poses[-1]
 
-    def _track(self, scan: Scan, predicted: Pose2D) -> Pose2D:
+    def _track(self, scan: Scan, predicted: Pose2D, sigma: tuple[float, float]) -> Pose2D:
         c = self.cfg
         hits = scan.hits
         if len(hits) < c.min_match_beams:
             return predicted
-        recent = self.keyframes[-c.local_keyframes:]
-        poses = self.graph.poses[-c.local_keyframes:]
-        ref = [transform_points(p, k.scan.hits) for k, p in zip(recent, poses, strict=True) if len(k.scan.hits)]
+        ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in self._reference(predicted)
+               if len(self.keyframes[i].scan.hits)]
         if not ref:
             return predicted
         fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=c.match_xy + 1.0)
-        res = match(fld, hits, predicted, SearchWindow(c.match_xy, c.match_yaw, c.match_yaw_step))
+        res = match(fld, hits, predicted, SearchWindow(c.match_xy, c.match_yaw, c.match_yaw_step), sigma,
+                    c.beams_per_dof)
         self.stats.last_score = res.score
         if res.score < c.min_match_score:
             return predicted
         self.stats.matched += 1
         return res.pose
+
+    def _reference(self, predicted: Pose2D) -> list[int]:
+        """Keyframes of the tracking map: the last ``local_keyframes`` plus older ones within ``local_radius``."""
+        c = self.cfg
+        n = len(self.keyframes)
+        idx = set(range(max(0, n - c.local_keyframes), n))
+        if c.local_radius > 0 and n > c.local_keyframes:
+            xy = np.array([(p.x, p.y) for p in self.graph.poses[: n - c.local_keyframes]])
+            near = np.nonzero(np.hypot(xy[:, 0] - predicted.x, xy[:, 1] - predicted.y) < c.local_radius)[0]
+            idx.update(int(i) for i in near)
+        return sorted(idx)
 
     def _add_keyframe(self, t: float, scan: Scan, odom: Pose2D, pose: Pose2D, travel: float) -> None:
         c = self.cfg

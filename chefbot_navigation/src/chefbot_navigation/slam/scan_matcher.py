@@ -9,9 +9,11 @@ Search (Olson's correlative matching, two levels): every cell-sized offset in
 the x/y window at every angle step (all at once: one index array of shape
 (angles, dy, dx, beams)), then a sub-cell refinement around the best pose with
 bilinear interpolation (``scipy.ndimage.map_coordinates``) at a quarter cell
-and a tenth of the angle step, then once more four times finer.  A mild penalty on the distance from the prior
-makes the matcher keep the prior along directions the scan does not constrain
-(a single flat wall seen by a narrow depth camera).
+and a tenth of the angle step, then once more four times finer.  A Gaussian prior around the odometry
+prediction (its std-devs grow with the motion, gmapping's srr/srt/str/stt)
+makes the matcher keep the prediction along directions the scan does not
+constrain (a single flat wall seen by a narrow depth camera), where the bare
+score would slide new wall points onto the part of the wall already mapped.
 """
 from __future__ import annotations
 
@@ -93,10 +95,16 @@ class SearchWindow:
 
 
 def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
-          prior_penalty: float = 0.05) -> MatchResult:
+          prior_sigma: tuple[float, float] | None = None, beams_per_dof: float = 10.0) -> MatchResult:
     """Pose of the robot that best explains ``points`` (N, 2) m given in its base frame.
 
     Searches ``window`` around ``prior`` (pose of the base in the field's frame).
+    ``prior_sigma`` (m, rad): std-devs of the prior (the odometry's error since
+    the last scan); candidates are ranked by the log-posterior
+    ``(beams / beams_per_dof) * log(score) - mahalanobis^2 / 2`` (neighbouring
+    beams are far from independent: ``beams_per_dof`` of them count as one
+    measurement), so a scan that cannot tell along a wall keeps the odometry
+    there.  None: a flat prior with a 5 % tie-break towards it.
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
@@ -117,16 +125,24 @@ def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: Sea
     cc = np.clip(col[:, None, None, :] + offs[None, None, :, None], 0, w - 1)   # (T, 1, Dx, N)
     score = field.field[rr, cc].mean(axis=3)                     # (T, Dy, Dx)
     spread = _spread(score, offs * res)                          # before the prior penalty
-    if prior_penalty > 0:
-        dxy2 = (offs[None, :, None] ** 2 + offs[None, None, :] ** 2) / max(n_xy, 1) ** 2
-        dth2 = (dths[:, None, None] / max(window.yaw, 1e-9)) ** 2
-        score = score * (1.0 - prior_penalty * (dxy2 + dth2))
+    d2 = (offs[None, :, None] ** 2 + offs[None, None, :] ** 2) * res ** 2       # (1, Dy, Dx) m^2
+    if prior_sigma is not None:
+        sxy, sth = prior_sigma
+        score = _posterior(score, len(pts), d2 / sxy ** 2 + (dths[:, None, None] / sth) ** 2, beams_per_dof)
+    else:
+        flat = d2 / max(window.xy, res) ** 2 + (dths[:, None, None] / max(window.yaw, 1e-9)) ** 2
+        score = score * (1.0 - 0.05 * flat)
     t, iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
     best = Pose2D(prior.x + offs[ix] * res, prior.y + offs[iy] * res, wrap_angle(th[t]))
-    fine = refine(field, pts, best, res / 2.0, window.yaw_step / 2.0)
-    fine = refine(field, pts, fine.pose, res / 8.0, window.yaw_step / 8.0)
+    fine = refine(field, pts, best, res / 2.0, window.yaw_step / 2.0, prior, prior_sigma, beams_per_dof)
+    fine = refine(field, pts, fine.pose, res / 8.0, window.yaw_step / 8.0, prior, prior_sigma, beams_per_dof)
     fine.spread = spread
     return fine
+
+
+def _posterior(score: np.ndarray, beams: int, mahalanobis2: np.ndarray, beams_per_dof: float) -> np.ndarray:
+    """Log-posterior of candidate poses: independent-measurement count * log(score) - m^2 / 2."""
+    return (beams / beams_per_dof) * np.log(np.maximum(score, 1e-4)) - 0.5 * mahalanobis2
 
 
 def _spread(score: np.ndarray, offs: np.ndarray) -> float:
@@ -139,8 +155,11 @@ def _spread(score: np.ndarray, offs: np.ndarray) -> float:
     return float(np.sqrt(max(np.linalg.eigvalsh(cov).max(), 0.0)))
 
 
-def refine(field: LikelihoodField, pts: np.ndarray, start: Pose2D, xy: float, yaw: float) -> MatchResult:
-    """Search of +-``xy`` m (5 steps) and +-``yaw`` rad (11 steps) around ``start``, bilinear scores."""
+def refine(field: LikelihoodField, pts: np.ndarray, start: Pose2D, xy: float, yaw: float,
+           prior: Pose2D | None = None, prior_sigma: tuple[float, float] | None = None,
+           beams_per_dof: float = 10.0) -> MatchResult:
+    """Search of +-``xy`` m (5 steps) and +-``yaw`` rad (11 steps) around ``start``, bilinear scores,
+    times the Gaussian prior around ``prior`` if ``prior_sigma`` is given."""
     offs = np.linspace(-xy, xy, 5)
     dths = np.linspace(-yaw, yaw, 11)
     th = start.yaw + dths
@@ -150,6 +169,14 @@ def refine(field: LikelihoodField, pts: np.ndarray, start: Pose2D, xy: float, ya
     X = start.x + wx[:, None, None, :] + offs[None, None, :, None]
     Y = start.y + wy[:, None, None, :] + offs[None, :, None, None]
     sc = field.score_points(np.stack(np.broadcast_arrays(X, Y), axis=-1)).mean(axis=3)
+    raw = sc
+    if prior is not None and prior_sigma is not None:
+        sxy, sth = prior_sigma
+        ex = start.x + offs - prior.x
+        ey = start.y + offs - prior.y
+        eth = np.angle(np.exp(1j * (th - prior.yaw)))
+        m2 = (ex[None, None, :] ** 2 + ey[None, :, None] ** 2) / sxy ** 2 + (eth[:, None, None] / sth) ** 2
+        sc = _posterior(sc, len(pts), m2, beams_per_dof)
     t, iy, ix = np.unravel_index(int(np.argmax(sc)), sc.shape)
     pose = Pose2D(start.x + offs[ix], start.y + offs[iy], wrap_angle(th[t]))
-    return MatchResult(pose, float(sc[t, iy, ix]), len(pts))
+    return MatchResult(pose, float(raw[t, iy, ix]), len(pts))
