@@ -79,6 +79,8 @@ class SlamConfig:
     edge_sigma_yaw: float = 0.01         # rad
     loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
     loop_sigma_yaw: float = 0.03         # rad
+    footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
+    #                                      hides it; 0: off)
     l_occ: float = 0.9                   # log-odds added per hit
     l_free: float = -0.7                 # log-odds added per pass
     l_clamp: float = 4.0                 # |log-odds| read out at most (clamp at read time)
@@ -96,7 +98,7 @@ class SlamConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "srr", "srt", "str", "stt",
+        for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt", "str", "stt",
                      "local_radius"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
@@ -256,11 +258,25 @@ class Slam:
             return
         origin = transform_points(pose, k.scan.origin[None, :])[0]
         ends = transform_points(pose, k.scan.ends)
+        r = self.cfg.footprint_radius + self.grid.res
+        self.grid.ensure(pose.x - r, pose.y - r, pose.x + r, pose.y + r)   # before trace: indices stay valid
         free, occ = self.grid.trace(origin, ends, k.scan.hit)
+        if self.cfg.footprint_radius > 0:
+            free = np.union1d(free, np.setdiff1d(self._footprint(pose), occ))
         flat = self.grid.l.reshape(-1)
         flat[free] += sign * self.cfg.l_free
         flat[occ] += sign * self.cfg.l_occ
         k.integrated = None if sign < 0 else pose
+
+    def _footprint(self, pose: Pose2D) -> np.ndarray:
+        """Flat indices of the cells of the disk of footprint_radius around the base (grid already covers it)."""
+        g, r = self.grid, self.cfg.footprint_radius
+        k = np.arange(-int(np.ceil(r / g.res)), int(np.ceil(r / g.res)) + 1) * g.res
+        dx, dy = np.meshgrid(k, k)
+        keep = np.hypot(dx, dy) <= r
+        col = np.floor((pose.x + dx[keep] - g.ox) / g.res).astype(np.int64)
+        row = np.floor((pose.y + dy[keep] - g.oy) / g.res).astype(np.int64)
+        return np.unique(row * g.l.shape[1] + col)
 
     def _close_loop(self) -> None:
         c = self.cfg
