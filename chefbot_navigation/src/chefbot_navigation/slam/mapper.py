@@ -63,6 +63,9 @@ class SlamConfig:
     beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
     sigma_yaw_min: float = 0.02          # rad
+    max_xy: float = 1.0                  # m, largest search half-window after blind motion
+    recovery_min_beams: int = 80         # obstacle returns needed for a widened search (few beams match anywhere)
+    recovery_accept: float = 0.85        # mean likelihood a widened-search pose needs to be taken
     min_match_score: float = 0.25        # mean likelihood below which the odometry prediction is kept
     min_match_beams: int = 10            # fewer obstacle beams: keep the prediction
     local_keyframes: int = 30            # keyframes of the tracking map
@@ -92,7 +95,7 @@ class SlamConfig:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
                     "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
-                    "loop_sigma_xy", "loop_sigma_yaw", "beams_per_dof", "sigma_xy_min", "sigma_yaw_min",
+                    "loop_sigma_xy", "loop_sigma_yaw", "beams_per_dof", "max_xy", "sigma_xy_min", "sigma_yaw_min",
                     "l_occ", "l_clamp")
         for name in positive:
             v = getattr(self, name)
@@ -108,7 +111,7 @@ class SlamConfig:
         if not (self.xmax > self.xmin and self.ymax > self.ymin):
             raise ValueError(f"xmin must be < xmax and ymin < ymax, got "
                              f"x {self.xmin}..{self.xmax}, y {self.ymin}..{self.ymax}")
-        for name in ("local_keyframes", "loop_every", "min_match_beams"):
+        for name in ("local_keyframes", "loop_every", "min_match_beams", "recovery_min_beams"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
 
@@ -131,6 +134,7 @@ class SlamStats:
     scans: int = 0
     keyframes: int = 0
     matched: int = 0
+    recoveries: int = 0
     loop_closures: int = 0
     optimisations: int = 0
     reintegrated: int = 0
@@ -153,6 +157,7 @@ class Slam:
         # per scan: (stamp, keyframe index, odometry pose) -> pose = kf pose * (kf odom^-1 * odom)
         self._scans: list[tuple[float, int, Pose2D]] = []
         self._since_loop = 0
+        self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
 
     # -- queries ------------------------------------------------------------------------------
     def pose_of(self, kf: int, odom: Pose2D) -> Pose2D:
@@ -197,12 +202,16 @@ class Slam:
         if not due:
             self._scans.append((t, len(self.keyframes) - 1, odom))
             return predicted
-        pose = predicted
+        pose, blind = predicted, None
         if c.scan_matching:
-            sxy = c.sigma_xy_min + c.srr * moved + c.srt * abs(rel.yaw)
-            syaw = c.sigma_yaw_min + c.str * moved + c.stt * abs(rel.yaw)
-            pose = self._track(scan, predicted, (sxy, syaw))
-        self._add_keyframe(t, scan, odom, pose, last.travel + moved)
+            # odometry error since the last accepted match (keyframes in between were blind)
+            dist, turn = self._blind[0] + moved, self._blind[1] + abs(rel.yaw)
+            sxy = c.sigma_xy_min + c.srr * dist + c.srt * turn
+            syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
+            pose, ok = self._track(scan, predicted, (sxy, syaw))
+            self._blind = (0.0, 0.0) if ok else (dist, turn)
+            blind = None if ok else (sxy, syaw)
+        self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind)
         self._scans.append((t, len(self.keyframes) - 1, odom))
         if c.loop_closure:
             self._since_loop += 1
@@ -211,23 +220,36 @@ class Slam:
                 self._close_loop()
         return self.graph.poses[-1]
 
-    def _track(self, scan: Scan, predicted: Pose2D, sigma: tuple[float, float]) -> Pose2D:
+    def _track(self, scan: Scan, predicted: Pose2D, sigma: tuple[float, float]) -> tuple[Pose2D, bool]:
+        """Matched pose (or the prediction) and whether the match was accepted.
+
+        The search window is 3 sigma of the odometry prior (at least match_xy / match_yaw): after
+        scans that could not be matched (a blind depth camera pressed against a chair while the
+        wheels slip) it grows with the motion since the last match, up to max_xy / pi.  A widened
+        search needs recovery_min_beams returns and a score of recovery_accept.
+        """
         c = self.cfg
         hits = scan.hits
         if len(hits) < c.min_match_beams:
-            return predicted
+            return predicted, False
         ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in self._reference(predicted)
                if len(self.keyframes[i].scan.hits)]
         if not ref:
-            return predicted
-        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=c.match_xy + 1.0)
-        res = match(fld, hits, predicted, SearchWindow(c.match_xy, c.match_yaw, c.match_yaw_step), sigma,
-                    c.beams_per_dof)
+            return predicted, False
+        wxy = min(max(c.match_xy, 3 * sigma[0]), c.max_xy)
+        wyaw = min(max(c.match_yaw, 3 * sigma[1]), math.pi)
+        wide = wyaw > c.match_yaw + 1e-9 or wxy > c.match_xy + 1e-9
+        if wide and len(hits) < c.recovery_min_beams:
+            return predicted, False
+        step = c.match_yaw_step * (2 if wyaw > 2 * c.match_yaw else 1)
+        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=wxy + 1.0)
+        res = match(fld, hits, predicted, SearchWindow(wxy, wyaw, step), sigma, c.beams_per_dof)
         self.stats.last_score = res.score
-        if res.score < c.min_match_score:
-            return predicted
+        if res.score < (c.recovery_accept if wide else c.min_match_score):
+            return predicted, False
         self.stats.matched += 1
-        return res.pose
+        self.stats.recoveries += int(wide)
+        return res.pose, True
 
     def _reference(self, predicted: Pose2D) -> list[int]:
         """Keyframes of the tracking map: the last ``local_keyframes`` plus older ones within ``local_radius``."""
@@ -240,14 +262,21 @@ class Slam:
             idx.update(int(i) for i in near)
         return sorted(idx)
 
-    def _add_keyframe(self, t: float, scan: Scan, odom: Pose2D, pose: Pose2D, travel: float) -> None:
+    def _add_keyframe(self, t: float, scan: Scan, odom: Pose2D, pose: Pose2D, travel: float,
+                      odometry_sigma: tuple[float, float] | None = None) -> None:
+        """Append a keyframe.  ``odometry_sigma`` (m, rad) set: its pose is odometry only (the match
+        failed), so its edge gets that uncertainty and its scan stays out of the map (a wrong pose
+        would clear free space through walls)."""
         c = self.cfg
         idx = self.graph.add_node(pose)
         self.keyframes.append(Keyframe(t, odom, scan, travel))
         if idx > 0:
             z = self.graph.poses[idx - 1].inverse().compose(pose)
-            self.graph.add_edge(idx - 1, idx, z, (c.edge_sigma_xy, c.edge_sigma_xy, c.edge_sigma_yaw))
-        self._integrate(idx, +1.0)
+            sig = (c.edge_sigma_xy, c.edge_sigma_xy, c.edge_sigma_yaw) if odometry_sigma is None else \
+                (odometry_sigma[0], odometry_sigma[0], odometry_sigma[1])
+            self.graph.add_edge(idx - 1, idx, z, sig)
+        if odometry_sigma is None:
+            self._integrate(idx, +1.0)
         self.stats.keyframes += 1
 
     def _integrate(self, idx: int, sign: float) -> None:
