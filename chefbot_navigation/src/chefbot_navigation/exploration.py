@@ -41,6 +41,25 @@ class ExploreConfig:
             raise ValueError(f"gain_weight must be >= 0, got {self.gain_weight}")
 
 
+@dataclass(frozen=True)
+class ExploreNodeParams:
+    """The explore node's own parameters (s, rad/s)."""
+
+    mode: str = "frontier"              # frontier | waypoints
+    map_frame: str = "map"
+    base_frame: str = "base_footprint"
+    goal_timeout: float = 60.0          # s (sim) per goal
+    max_duration: float = 900.0         # s (sim) for the whole run
+    spin_speed: float = 0.8             # rad/s of the look-around spins (0: none)
+    recheck_period: float = 2.0         # s, is the current goal's frontier still open?
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("frontier", "waypoints"):
+            raise ValueError(f"mode must be 'frontier' or 'waypoints', got {self.mode!r}")
+        if not (self.goal_timeout > 0 and self.max_duration > 0 and self.recheck_period > 0 <= self.spin_speed):
+            raise ValueError("goal_timeout, max_duration, recheck_period must be > 0 s and spin_speed >= 0")
+
+
 @dataclass
 class Frontier:
     """A frontier group: centroid (m), length (m), goal pose, travel cost (m)."""
