@@ -18,6 +18,7 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Odometry
+from sim_navigation_test_node import wait_until  # same test directory (on sys.path for rostest nodes)
 from std_msgs.msg import Bool
 
 from chefbot_navigation.geometry import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
@@ -29,14 +30,6 @@ from chefbot_sim.world import load_tables
 PKG = "chefbot_navigation"
 # the localization started on the saved map; the lead switches this to amcl at merge
 LOCALIZATION = ["rosrun", PKG, "fake_localization", "__name:=fake_localization"]
-
-
-def wait_until(cond, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline or rospy.is_shutdown():
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.1)
 
 
 class SlamWorkflowTest(unittest.TestCase):

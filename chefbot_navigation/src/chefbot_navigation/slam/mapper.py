@@ -238,17 +238,20 @@ class Slam:
             return predicted, False
         wxy = min(max(c.match_xy, 3 * sigma[0]), c.max_xy)
         wyaw = min(max(c.match_yaw, 3 * sigma[1]), math.pi)
-        wide = wyaw > c.match_yaw + 1e-9 or wxy > c.match_xy + 1e-9
-        if wide and len(hits) < c.recovery_min_beams:
+        # the wider the search (after blind motion), the more evidence a match needs: the threshold
+        # rises from min_match_score at the usual window to recovery_accept at twice it
+        widen = max(wyaw / c.match_yaw, wxy / c.match_xy)
+        frac = min(max(widen - 1.0, 0.0), 1.0)
+        if frac > 0.5 and len(hits) < c.recovery_min_beams:
             return predicted, False
         step = c.match_yaw_step * (2 if wyaw > 2 * c.match_yaw else 1)
         fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=wxy + 1.0)
         res = match(fld, hits, predicted, SearchWindow(wxy, wyaw, step), sigma, c.beams_per_dof)
         self.stats.last_score = res.score
-        if res.score < (c.recovery_accept if wide else c.min_match_score):
+        if res.score < c.min_match_score + frac * (c.recovery_accept - c.min_match_score):
             return predicted, False
         self.stats.matched += 1
-        self.stats.recoveries += int(wide)
+        self.stats.recoveries += int(frac > 0)
         return res.pose, True
 
     def _reference(self, predicted: Pose2D) -> list[int]:
