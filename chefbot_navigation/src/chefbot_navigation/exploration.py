@@ -129,7 +129,12 @@ def find_frontiers(occ: OccupancyMap, robot: Pose2D, cfg: ExploreConfig,
             continue
         k = np.nonzero(cand)[0][np.argmin(np.hypot(gx[cand] - cx, gy[cand] - cy))]
         x, y = float(gx[k]), float(gy[k])
-        yaw = math.atan2(cy - y, cx - x) if math.hypot(cy - y, cx - x) > 1e-6 else robot.yaw
+        # face the frontier; a goal on the frontier itself faces on along the way it was reached
+        # (from the known side into the unknown)
+        if math.hypot(cy - y, cx - x) > 0.3:
+            yaw = math.atan2(cy - y, cx - x)
+        else:
+            yaw = math.atan2(y - robot.y, x - robot.x) if math.hypot(y - robot.y, x - robot.x) > 1e-6 else robot.yaw
         out.append(Frontier((cx, cy), length, Pose2D(x, y, yaw), float(travel[gr[k], gc[k]])))
     out.sort(key=lambda f: f.travel - cfg.gain_weight * f.length)
     return out
