@@ -26,7 +26,7 @@ from chefbot_navigation.grid import FREE, UNKNOWN, OccupancyMap
 class ExploreConfig:
     """Goal selection parameters (m unless stated)."""
 
-    clearance: float = 0.35          # goal distance from any occupied cell
+    clearance: float = 0.5           # goal distance from any occupied cell
     robot_radius: float = 0.2        # travel corridor distance from occupied cells
     approach: float = 1.0            # goal at most this far from its frontier
     min_frontier: float = 0.3        # frontier length (m, cells * resolution) worth a visit
