@@ -60,12 +60,13 @@ class SlamWorkflowTest(unittest.TestCase):
         # 1. exploration ends by itself (explore/done true) within 10 min of sim time
         t0 = rospy.get_time()
         wait_until(lambda: bool(self.done), 2000.0, "explore/done")
-        self.assertTrue(self.done[-1], "exploration did not complete")
         took = rospy.get_time() - t0
-        wait_until(lambda: bool(self.maps) and self.maps[-1].header.stamp.to_sec() > t0 + took - 1, 60, "last map")
+        wait_until(lambda: bool(self.maps) and self.maps[-1].header.stamp.to_sec() > t0 + took - 3, 60, "last map")
         q = map_quality(msg_to_occupancy(self.maps[-1]), load_map(rospy.get_param("~truth_map")))
-        print(f"[figure] exploration {took:.0f} s sim; matched {100 * q.matched:.1f} %, false occupied "
-              f"{100 * q.false_occupied:.2f} %, reachable free area mapped {100 * q.coverage:.1f} %", flush=True)
+        print(f"[figure] exploration {took:.0f} s sim, complete: {self.done[-1]}; matched {100 * q.matched:.1f} %, "
+              f"false occupied {100 * q.false_occupied:.2f} %, reachable free area mapped {100 * q.coverage:.1f} %",
+              flush=True)
+        self.assertTrue(self.done[-1], "exploration did not complete (frontiers left at max_duration)")
         self.assertLess(took, 900.0)
         self.assertGreater(q.coverage, 0.90)
         self.assertGreater(q.matched, 0.85)
