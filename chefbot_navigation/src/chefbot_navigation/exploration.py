@@ -18,8 +18,8 @@ import numpy as np
 from scipy import ndimage
 from skimage.graph import MCP_Geometric
 
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import FREE, UNKNOWN, OccupancyMap
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import FREE, UNKNOWN, OccupancyMap
 
 
 @dataclass

@@ -18,7 +18,7 @@ import genpy
 import rosbag
 import tf2_py
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 from chefbot_navigation.slam.mapper import SlamConfig
 from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
 

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from sensor_msgs.msg import LaserScan
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_io import transform_to_pose2d
 from chefbot_navigation.slam.mapper import Slam, SlamConfig
 from chefbot_navigation.slam.scan import ScanError, scan_from_ranges

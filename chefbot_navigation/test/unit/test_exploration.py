@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from chefbot_navigation.exploration import ExploreConfig, ExploreNodeParams, find_frontiers, frontier_mask, known_area
-from chefbot_navigation.geometry import Pose2D
-from chefbot_navigation.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
 
 
 def _room(known_cols: int) -> OccupancyMap:

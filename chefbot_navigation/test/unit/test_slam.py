@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import FREE, OCCUPIED, UNKNOWN
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN
 from chefbot_navigation.slam.mapper import Slam, SlamConfig
 from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
 from chefbot_navigation.slam.pose_graph import PoseGraph

@@ -13,7 +13,7 @@ import rospy
 from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import LaserScan
 
-from chefbot_navigation.map_io import load_map
+from chefbot_common.map_io import load_map
 from chefbot_navigation.slam.mapper import SlamConfig
 from chefbot_navigation.slam.metrics import map_quality
 from chefbot_navigation.slam_bag import BagError, run_bag
@@ -22,7 +22,7 @@ from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
 PKG = Path(__file__).resolve().parents[2]
 BAG = PKG / "test" / "fixtures" / "hotel_route.bag"
 NODE = PKG / "nodes" / "slam_offline"
-TRUTH = PKG.parent / "chefbot_sim" / "worlds" / "hotel_map.yaml"
+TRUTH = PKG.parent / "chefbot_navigation" / "maps" / "hotel_map.yaml"
 
 
 @pytest.fixture(scope="module")

@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle
-from chefbot_navigation.grid import OccupancyMap
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import OccupancyMap
 from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
 from chefbot_navigation.slam.pose_graph import PoseGraph
 from chefbot_navigation.slam.scan import Scan, transform_points

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from chefbot_navigation.grid import FREE, OccupancyMap
+from chefbot_common.grid import FREE, OccupancyMap
 
 
 @dataclass

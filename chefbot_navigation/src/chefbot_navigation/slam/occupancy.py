@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from chefbot_navigation.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
+from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
 
 
 def logit(p: float) -> float:

@@ -15,7 +15,7 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 
 
 @dataclass

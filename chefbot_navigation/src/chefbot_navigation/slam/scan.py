@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 
 
 class ScanError(ValueError):

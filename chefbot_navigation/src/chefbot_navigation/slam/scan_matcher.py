@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from chefbot_navigation.geometry import Pose2D, wrap_angle
+from chefbot_common.geometry import Pose2D, wrap_angle
 
 
 @dataclass

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from chefbot_navigation.geometry import Pose2D
+from chefbot_common.geometry import Pose2D
 
 
 def box_segments(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
