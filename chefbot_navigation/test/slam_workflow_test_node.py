@@ -18,14 +18,14 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Odometry
-from chefbot_common.rostest_helpers import wait_for as wait_until
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import quaternion_from_yaw, wrap_angle, yaw_from_quaternion
 from chefbot_common.map_io import load_map
+from chefbot_common.rostest_helpers import wait_for as wait_until
+from chefbot_common.tables import load_tables
 from chefbot_navigation.ros_io import msg_to_occupancy
 from chefbot_navigation.slam.metrics import map_quality
-from chefbot_common.tables import load_tables
 
 PKG = "chefbot_navigation"
 # the localization started on the saved map; the lead switches this to amcl at merge

@@ -144,3 +144,11 @@ def known_area(occ: OccupancyMap) -> tuple[float, float]:
     """(known m^2, free m^2) of the map."""
     a = occ.info.resolution ** 2
     return float((occ.data != UNKNOWN).sum() * a), float((occ.data == FREE).sum() * a)
+
+
+def progress(occ: OccupancyMap, n_frontiers: int, elapsed: float) -> str:
+    """One progress line: known and free area (m^2), frontiers left, elapsed time (s)."""
+    known, free = known_area(occ)
+    extent = occ.info.width * occ.info.height * occ.info.resolution ** 2
+    return (f"explore: known {known:.1f} m^2 ({100 * known / max(extent, 1e-9):.0f} % of the map's extent), "
+            f"free {free:.1f} m^2, {n_frontiers} frontiers left, elapsed {elapsed:.0f} s")

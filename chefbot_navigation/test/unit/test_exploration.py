@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from chefbot_navigation.exploration import ExploreConfig, ExploreNodeParams, find_frontiers, frontier_mask, known_area
 from chefbot_common.geometry import Pose2D
 from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
+from chefbot_navigation.exploration import ExploreConfig, ExploreNodeParams, find_frontiers, frontier_mask, known_area
 
 
 def _room(known_cols: int) -> OccupancyMap:
