@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rostest node for slam_workflow_fake_localization.test: explore -> map quality -> map_saver ->
+"""rostest node for manual/slam_workflow.test: explore -> map quality -> map_saver ->
 map_server -> (SLAM stopped) localization on the saved map -> three table deliveries."""
 from __future__ import annotations
 
