@@ -1,0 +1,351 @@
+"""Graph SLAM front and back end (pure): what the ``slam`` and ``slam_offline`` nodes share.
+
+Per scan (time in float s, odometry pose of the base in ``odom``):
+
+1. Predict the base pose in ``map`` from the last keyframe and the odometry
+   delta since then.
+2. Only when the robot moved ``linearUpdate`` m / turned ``angularUpdate`` rad
+   since the last keyframe (or ``temporalUpdate`` s passed, if > 0) is the scan
+   processed: matched (correlative + refinement, :mod:`scan_matcher`) against a
+   likelihood field of the obstacle points of the last ``local_keyframes``
+   keyframes, which corrects the odometry drift.
+3. The scan becomes a keyframe: a pose-graph node with an edge to the previous
+   keyframe (their matched relative pose), integrated into the log-odds grid.
+4. Loop closure: keyframes driven past more than ``loop_min_travel`` m ago
+   and lying within ``loop_search_radius`` m are the candidates; the scan is
+   matched in a wide window against their obstacle points; a good match
+   (``loop_min_score``) adds a loop edge, the graph is optimised, and every
+   keyframe that moved is re-integrated (its old ray-cast contribution is
+   subtracted, the new one added: the grid stores unclamped log-odds sums, so
+   this is exact; clamping is applied when the map is read).
+
+The map frame is the odometry frame at the first scan (map->odom = identity
+until corrections accumulate), like gmapping.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import OccupancyMap
+from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
+from chefbot_navigation.slam.pose_graph import PoseGraph
+from chefbot_navigation.slam.scan import Scan, transform_points
+from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
+
+
+@dataclass
+class SlamConfig:
+    """Parameters (gmapping's names where the meaning matches); units in the comments."""
+
+    delta: float = 0.05                  # m, map resolution
+    maxUrange: float = 7.5               # m, usable range: longer beams clear up to here, mark nothing
+    maxRange: float = 0.0                # m, readings >= this are "no return" (0: the scan's range_max)
+    linearUpdate: float = 0.1            # m driven before the next scan is processed
+    angularUpdate: float = 0.15          # rad turned before the next scan is processed
+    temporalUpdate: float = -1.0         # s; > 0: also process a scan after this long (-1: off)
+    xmin: float = -10.0                  # m, initial map extent (the map grows as needed)
+    ymin: float = -10.0
+    xmax: float = 10.0
+    ymax: float = 10.0
+    sigma: float = 0.07                  # m, blur of the likelihood field
+    scan_matching: bool = True           # False: raw odometry (for comparison only)
+    match_xy: float = 0.25               # m, tracking search half-window
+    match_yaw: float = 0.25              # rad, tracking search half-window
+    match_yaw_step: float = 0.0175       # rad, coarse angle step
+    srr: float = 0.1                     # m/m, odometry translation error per metre driven
+    srt: float = 0.05                    # m/rad, translation error per radian turned
+    str: float = 0.1                     # rad/m, rotation error per metre driven
+    stt: float = 0.3                     # rad/rad, rotation error per radian turned (wheel slip)
+    beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
+    sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
+    sigma_yaw_min: float = 0.02          # rad
+    max_xy: float = 1.0                  # m, largest search half-window after blind motion
+    recovery_min_beams: int = 80         # obstacle returns needed for a widened search (few beams match anywhere)
+    recovery_accept: float = 0.85        # mean likelihood a widened-search pose needs to be taken
+    min_match_score: float = 0.25        # mean likelihood below which the odometry prediction is kept
+    min_match_beams: int = 10            # fewer obstacle beams: keep the prediction
+    local_keyframes: int = 30            # keyframes of the tracking map
+    local_radius: float = 4.0            # m; older keyframes this close also join the tracking map (0: off)
+    loop_closure: bool = True
+    loop_search_radius: float = 2.5      # m, candidate keyframes within this distance
+    loop_min_travel: float = 5.0         # m driven since the candidate
+    loop_xy: float = 0.3                 # m, loop search half-window
+    loop_yaw: float = 0.35               # rad, loop search half-window
+    loop_min_score: float = 0.7          # mean likelihood to accept a loop closure
+    loop_max_spread: float = 0.05        # m, reject an ambiguous closure (corridor aliasing)
+    loop_every: int = 3                  # keyframes between loop-closure attempts
+    edge_sigma_xy: float = 0.02          # m, std-dev of a matched keyframe-to-keyframe edge
+    edge_sigma_yaw: float = 0.01         # rad
+    loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
+    loop_sigma_yaw: float = 0.03         # rad
+    footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
+    #                                      hides it; 0: off)
+    l_occ: float = 0.9                   # log-odds added per hit
+    l_free: float = -0.7                 # log-odds added per pass
+    l_clamp: float = 4.0                 # |log-odds| read out at most (clamp at read time)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first parameter out of range."""
+        positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
+                    "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
+                    "loop_sigma_xy", "loop_sigma_yaw", "beams_per_dof", "max_xy", "sigma_xy_min", "sigma_yaw_min",
+                    "l_occ", "l_clamp")
+        for name in positive:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
+                     "str", "stt", "local_radius"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if not self.l_free < 0:
+            raise ValueError(f"l_free must be < 0, got {self.l_free}")
+        if not (self.xmax > self.xmin and self.ymax > self.ymin):
+            raise ValueError(f"xmin must be < xmax and ymin < ymax, got "
+                             f"x {self.xmin}..{self.xmax}, y {self.ymin}..{self.ymax}")
+        for name in ("local_keyframes", "loop_every", "min_match_beams", "recovery_min_beams"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
+                raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
+
+
+@dataclass
+class Keyframe:
+    """A processed scan: its stamp (s), odometry pose, scan (base frame) and travel so far (m)."""
+
+    t: float
+    odom: Pose2D
+    scan: Scan
+    travel: float
+    integrated: Pose2D | None = None      # pose whose ray-cast is in the grid
+
+
+@dataclass
+class SlamStats:
+    """Counters for logs and the benchmark."""
+
+    scans: int = 0
+    keyframes: int = 0
+    matched: int = 0
+    recoveries: int = 0
+    loop_closures: int = 0
+    optimisations: int = 0
+    reintegrated: int = 0
+    last_score: float = 0.0
+    events: list[str] = field(default_factory=list)
+
+
+class Slam:
+    """Online graph SLAM on 2-D scans; see the module docstring."""
+
+    def __init__(self, cfg: SlamConfig | None = None) -> None:
+        self.cfg = cfg or SlamConfig()
+        self.cfg.validate()
+        c = self.cfg
+        big = LogOddsParams(l_occ=c.l_occ, l_free=c.l_free, l_min=-1e9, l_max=1e9)
+        self.grid = LogOddsGrid(c.delta, (c.xmin, c.ymin, c.xmax, c.ymax), big)
+        self.graph = PoseGraph()
+        self.keyframes: list[Keyframe] = []
+        self.stats = SlamStats()
+        # per scan: (stamp, keyframe index, odometry pose) -> pose = kf pose * (kf odom^-1 * odom)
+        self._scans: list[tuple[float, int, Pose2D]] = []
+        self._since_loop = 0
+        self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
+
+    # -- queries ------------------------------------------------------------------------------
+    def pose_of(self, kf: int, odom: Pose2D) -> Pose2D:
+        """Base pose in map for an odometry pose, relative to keyframe ``kf``."""
+        k = self.keyframes[kf]
+        return self.graph.poses[kf].compose(k.odom.inverse().compose(odom))
+
+    def map_to_odom(self) -> Pose2D:
+        """Transform map->odom implied by the latest keyframe (identity before the first scan)."""
+        if not self.keyframes:
+            return Pose2D()
+        return self.graph.poses[-1].compose(self.keyframes[-1].odom.inverse())
+
+    def trajectory(self) -> list[tuple[float, Pose2D]]:
+        """(stamp s, base pose in map) of every scan given, with the latest graph estimate."""
+        return [(t, self.pose_of(kf, odom)) for t, kf, odom in self._scans]
+
+    def occupancy(self) -> OccupancyMap:
+        """Trinary map (100 / 0 / -1) of everything integrated so far."""
+        g = self.grid
+        clamped = LogOddsGrid.__new__(LogOddsGrid)
+        clamped.__dict__.update(g.__dict__)
+        clamped.l = np.clip(g.l, -self.cfg.l_clamp, self.cfg.l_clamp)
+        clamped.params = LogOddsParams(self.cfg.l_occ, self.cfg.l_free)
+        return clamped.to_occupancy()
+
+    # -- update -------------------------------------------------------------------------------
+    def add_scan(self, t: float, scan: Scan, odom: Pose2D) -> Pose2D:
+        """Process one scan (base frame) taken at ``t`` s with the base at ``odom``; returns the map pose."""
+        c = self.cfg
+        self.stats.scans += 1
+        if not self.keyframes:
+            self._add_keyframe(t, scan, odom, odom, 0.0)
+            self._scans.append((t, 0, odom))
+            return odom
+        last = self.keyframes[-1]
+        rel = last.odom.inverse().compose(odom)
+        moved = math.hypot(rel.x, rel.y)
+        due = (moved >= c.linearUpdate or abs(rel.yaw) >= c.angularUpdate
+               or (c.temporalUpdate > 0 and t - last.t >= c.temporalUpdate))
+        predicted = self.graph.poses[-1].compose(rel)
+        if not due:
+            self._scans.append((t, len(self.keyframes) - 1, odom))
+            return predicted
+        pose, blind = predicted, None
+        if c.scan_matching:
+            # odometry error since the last accepted match (keyframes in between were blind)
+            dist, turn = self._blind[0] + moved, self._blind[1] + abs(rel.yaw)
+            sxy = c.sigma_xy_min + c.srr * dist + c.srt * turn
+            syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
+            pose, ok = self._track(scan, predicted, (sxy, syaw))
+            self._blind = (0.0, 0.0) if ok else (dist, turn)
+            blind = None if ok else (sxy, syaw)
+        self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind)
+        self._scans.append((t, len(self.keyframes) - 1, odom))
+        if c.loop_closure:
+            self._since_loop += 1
+            if self._since_loop >= c.loop_every:
+                self._since_loop = 0
+                self._close_loop()
+        return self.graph.poses[-1]
+
+    def _track(self, scan: Scan, predicted: Pose2D, sigma: tuple[float, float]) -> tuple[Pose2D, bool]:
+        """Matched pose (or the prediction) and whether the match was accepted.
+
+        The search window is 3 sigma of the odometry prior (at least match_xy / match_yaw): after
+        scans that could not be matched (a blind depth camera pressed against a chair while the
+        wheels slip) it grows with the motion since the last match, up to max_xy / pi.  A widened
+        search needs recovery_min_beams returns and a score of recovery_accept.
+        """
+        c = self.cfg
+        hits = scan.hits
+        if len(hits) < c.min_match_beams:
+            return predicted, False
+        ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in self._reference(predicted)
+               if len(self.keyframes[i].scan.hits)]
+        if not ref:
+            return predicted, False
+        wxy = min(max(c.match_xy, 3 * sigma[0]), c.max_xy)
+        wyaw = min(max(c.match_yaw, 3 * sigma[1]), math.pi)
+        # the wider the search (after blind motion), the more evidence a match needs: the threshold
+        # rises from min_match_score at the usual window to recovery_accept at twice it
+        widen = max(wyaw / c.match_yaw, wxy / c.match_xy)
+        frac = min(max(widen - 1.0, 0.0), 1.0)
+        if frac > 0.5 and len(hits) < c.recovery_min_beams:
+            return predicted, False
+        step = c.match_yaw_step * (2 if wyaw > 2 * c.match_yaw else 1)
+        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=wxy + 1.0)
+        res = match(fld, hits, predicted, SearchWindow(wxy, wyaw, step), sigma, c.beams_per_dof)
+        self.stats.last_score = res.score
+        if res.score < c.min_match_score + frac * (c.recovery_accept - c.min_match_score):
+            return predicted, False
+        self.stats.matched += 1
+        self.stats.recoveries += int(frac > 0)
+        return res.pose, True
+
+    def _reference(self, predicted: Pose2D) -> list[int]:
+        """Keyframes of the tracking map: the last ``local_keyframes`` plus older ones within ``local_radius``."""
+        c = self.cfg
+        n = len(self.keyframes)
+        idx = set(range(max(0, n - c.local_keyframes), n))
+        if c.local_radius > 0 and n > c.local_keyframes:
+            xy = np.array([(p.x, p.y) for p in self.graph.poses[: n - c.local_keyframes]])
+            near = np.nonzero(np.hypot(xy[:, 0] - predicted.x, xy[:, 1] - predicted.y) < c.local_radius)[0]
+            idx.update(int(i) for i in near)
+        return sorted(idx)
+
+    def _add_keyframe(self, t: float, scan: Scan, odom: Pose2D, pose: Pose2D, travel: float,
+                      odometry_sigma: tuple[float, float] | None = None) -> None:
+        """Append a keyframe.  ``odometry_sigma`` (m, rad) set: its pose is odometry only (the match
+        failed), so its edge gets that uncertainty and its scan stays out of the map (a wrong pose
+        would clear free space through walls)."""
+        c = self.cfg
+        idx = self.graph.add_node(pose)
+        self.keyframes.append(Keyframe(t, odom, scan, travel))
+        if idx > 0:
+            z = self.graph.poses[idx - 1].inverse().compose(pose)
+            sig = (c.edge_sigma_xy, c.edge_sigma_xy, c.edge_sigma_yaw) if odometry_sigma is None else \
+                (odometry_sigma[0], odometry_sigma[0], odometry_sigma[1])
+            self.graph.add_edge(idx - 1, idx, z, sig)
+        if odometry_sigma is None:
+            self._integrate(idx, +1.0)
+        self.stats.keyframes += 1
+
+    def _integrate(self, idx: int, sign: float) -> None:
+        k = self.keyframes[idx]
+        pose = k.integrated if sign < 0 else self.graph.poses[idx]
+        if len(k.scan.ends) == 0:
+            k.integrated = None if sign < 0 else pose
+            return
+        origin = transform_points(pose, k.scan.origin[None, :])[0]
+        ends = transform_points(pose, k.scan.ends)
+        r = self.cfg.footprint_radius + self.grid.res
+        self.grid.ensure(pose.x - r, pose.y - r, pose.x + r, pose.y + r)   # before trace: indices stay valid
+        free, occ = self.grid.trace(origin, ends, k.scan.hit)
+        if self.cfg.footprint_radius > 0:
+            free = np.union1d(free, np.setdiff1d(self._footprint(pose), occ))
+        flat = self.grid.l.reshape(-1)
+        flat[free] += sign * self.cfg.l_free
+        flat[occ] += sign * self.cfg.l_occ
+        k.integrated = None if sign < 0 else pose
+
+    def _footprint(self, pose: Pose2D) -> np.ndarray:
+        """Flat indices of the cells of the disk of footprint_radius around the base (grid already covers it)."""
+        g, r = self.grid, self.cfg.footprint_radius
+        k = np.arange(-int(np.ceil(r / g.res)), int(np.ceil(r / g.res)) + 1) * g.res
+        dx, dy = np.meshgrid(k, k)
+        keep = np.hypot(dx, dy) <= r
+        col = np.floor((pose.x + dx[keep] - g.ox) / g.res).astype(np.int64)
+        row = np.floor((pose.y + dy[keep] - g.oy) / g.res).astype(np.int64)
+        return np.unique(row * g.l.shape[1] + col)
+
+    def _close_loop(self) -> None:
+        c = self.cfg
+        cur = len(self.keyframes) - 1
+        kf = self.keyframes[cur]
+        pose = self.graph.poses[cur]
+        if len(kf.scan.hits) < c.min_match_beams:
+            return
+        cands = [i for i in range(cur)
+                 if kf.travel - self.keyframes[i].travel > c.loop_min_travel
+                 and self.graph.poses[i].distance(pose) < c.loop_search_radius]
+        ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in cands
+               if len(self.keyframes[i].scan.hits)]
+        if not ref:
+            return
+        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=c.loop_xy + 1.0)
+        res = match(fld, kf.scan.hits, pose, SearchWindow(c.loop_xy, c.loop_yaw, c.match_yaw_step))
+        if res.score < c.loop_min_score or res.spread > c.loop_max_spread:
+            return
+        anchor = min(cands, key=lambda i: self.graph.poses[i].distance(res.pose))
+        z = self.graph.poses[anchor].inverse().compose(res.pose)
+        self.graph.add_edge(anchor, cur, z, (c.loop_sigma_xy, c.loop_sigma_xy, c.loop_sigma_yaw), loop=True)
+        self.stats.loop_closures += 1
+        err = res.pose.distance(pose)
+        if err < c.delta / 2 and abs(wrap_angle(res.pose.yaw - pose.yaw)) < 0.005:
+            return          # consistent already: keep the edge for later optimisations
+        self.graph.optimize()
+        self.stats.optimisations += 1
+        self.stats.events.append(f"loop {anchor}->{cur} corrected {err:.3f} m")
+        self._reintegrate()
+
+    def _reintegrate(self) -> None:
+        tol_xy, tol_yaw = self.cfg.delta / 4, 0.25 * self.cfg.delta / max(self.cfg.maxUrange, 1.0)
+        for i, k in enumerate(self.keyframes):
+            p, q = self.graph.poses[i], k.integrated
+            if q is None or (p.distance(q) < tol_xy and abs(wrap_angle(p.yaw - q.yaw)) < tol_yaw):
+                continue
+            self._integrate(i, -1.0)
+            self._integrate(i, +1.0)
+            self.stats.reintegrated += 1

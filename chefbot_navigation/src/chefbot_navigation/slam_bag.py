@@ -1,0 +1,126 @@
+"""Offline SLAM over a rosbag (``scan`` + ``tf``/``tf_static``), as fast as the machine allows.
+
+Used by ``nodes/slam_offline`` and the benchmark.  All tf messages are loaded
+into one tf2 ``BufferCore`` whose cache spans the whole bag, then the scans
+are fed in stamp order to the same :class:`~chefbot_navigation.slam_io.SlamFrontend`
+the live node uses, so the offline map reproduces the live one.
+"""
+from __future__ import annotations
+
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import genpy
+import rosbag
+import tf2_py
+
+from chefbot_common.geometry import Pose2D
+from chefbot_navigation.slam.mapper import SlamConfig
+from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
+
+
+class BagError(RuntimeError):
+    """The bag cannot be mapped (missing, unreadable, no scan topic); the message says why."""
+
+
+@dataclass
+class OfflineResult:
+    """The front end (map + trajectory inside), how many scans were used / skipped, and timing."""
+
+    front: SlamFrontend
+    scans: int
+    skipped: int
+    bag_seconds: float
+    wall_seconds: float
+    first_error: str = ""
+
+    @property
+    def speedup(self) -> float:
+        """Bag time / processing time (x real time)."""
+        return self.bag_seconds / max(self.wall_seconds, 1e-9)
+
+
+def _topic(name: str) -> str:
+    return name if name.startswith("/") else "/" + name
+
+
+def progress_bar(done: int, total: int, t0: float, bag_t: float, width: int = 30) -> None:
+    """One-line progress on stderr: bar, percentage, scans, speed (x real time)."""
+    frac = done / max(total, 1)
+    rate = bag_t / max(time.monotonic() - t0, 1e-9)
+    bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
+    sys.stderr.write(f"\r[{bar}] {100 * frac:5.1f} % {done}/{total} scans, {rate:5.1f}x real time")
+    if done >= total:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", base_frame: str = "base_footprint",
+            odom_frame: str = "odom", progress: Callable[[int, int, float, float], None] | None = None,
+            odom_filter: Callable[[float, Pose2D], Pose2D] | None = None) -> OfflineResult:
+    """Map a bag; raises :class:`BagError` for a missing/unreadable bag or one without the scan topic.
+
+    ``odom_filter(t, pose)`` (tests / benchmark only) may replace each odometry
+    pose, e.g. to inject wheel noise into a bag recorded with perfect odometry.
+    """
+    path = Path(bag_path)
+    if not path.is_file():
+        raise BagError(f"{path}: no such bag file")
+    try:
+        bag = rosbag.Bag(str(path))
+    except Exception as exc:  # rosbag raises ROSBagException, OSError, ...
+        raise BagError(f"{path}: cannot read bag ({exc})") from exc
+    with bag:
+        info = bag.get_type_and_topic_info().topics
+        scan_t = _topic(scan_topic)
+        if scan_t not in info:
+            raise BagError(f"{path}: bag has no topic '{scan_t}' (topics: {', '.join(sorted(info)) or 'none'})")
+        if info[scan_t].msg_type != "sensor_msgs/LaserScan":
+            raise BagError(f"{path}: topic '{scan_t}' is {info[scan_t].msg_type}, not sensor_msgs/LaserScan")
+        total = info[scan_t].message_count
+        start, end = bag.get_start_time(), bag.get_end_time()
+        core = tf2_py.BufferCore(genpy.Duration(max(end - start, 0.0) + 60.0))
+        with warnings.catch_warnings():
+            # bag messages are rosbag's own generated classes; tf2 warns about their type names
+            warnings.simplefilter("ignore", UserWarning)
+            for topic, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
+                for tr in msg.transforms:
+                    if tr.child_frame_id.lstrip("/") == odom_frame.lstrip("/") and \
+                            tr.header.frame_id.lstrip("/") != base_frame.lstrip("/"):
+                        continue    # a recorded map->odom (from a live SLAM/AMCL run) is not an input
+                    if topic == "/tf_static":
+                        core.set_transform_static(tr, "bag")
+                    else:
+                        core.set_transform(tr, "bag")
+
+        def lookup(target: str, source: str, stamp):
+            return core.lookup_transform_core(target, source, stamp)
+
+        front = SlamFrontend(cfg, lookup, base_frame, odom_frame)
+        if odom_filter is not None:
+            raw = front.odom_pose
+            front.odom_pose = lambda stamp: odom_filter(stamp.to_sec(), raw(stamp))  # type: ignore[method-assign]
+        t0 = time.monotonic()
+        done = skipped = 0
+        first_error = ""
+        first_t = last_t = None
+        for _, msg, _ in bag.read_messages(topics=[scan_t]):
+            st = msg.header.stamp.to_sec()
+            first_t = st if first_t is None else first_t
+            last_t = st
+            try:
+                front.process(msg)
+            except SlamInputError as exc:
+                skipped += 1
+                first_error = first_error or str(exc)
+            done += 1
+            if progress is not None and (done % 50 == 0 or done == total):
+                progress(done, total, t0, st - first_t)
+        wall = time.monotonic() - t0
+    if done == skipped:
+        raise BagError(f"{path}: no usable scan on '{scan_t}' ({skipped} skipped; first error: {first_error})")
+    return OfflineResult(front, done - skipped, skipped, (last_t or 0.0) - (first_t or 0.0), wall, first_error)

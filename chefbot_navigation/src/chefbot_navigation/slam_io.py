@@ -1,0 +1,87 @@
+"""What the live ``slam`` node and ``slam_offline`` share: LaserScan + tf in, SLAM core out.
+
+Message types only, no rospy: the caller passes a tf lookup
+``lookup(target, source, stamp) -> TransformStamped`` (tf2's BufferCore in
+the offline tool, a tf2_ros.Buffer with a timeout in the live node), so both
+feed the core exactly the same numbers and a recorded bag reproduces the
+live map.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import numpy as np
+from sensor_msgs.msg import LaserScan
+
+from chefbot_common.geometry import Pose2D
+from chefbot_navigation.ros_io import transform_to_pose2d
+from chefbot_navigation.slam.mapper import Slam, SlamConfig
+from chefbot_navigation.slam.scan import ScanError, scan_from_ranges
+
+Lookup = Callable[[str, str, object], object]
+
+# parameter name (gmapping's where one exists) -> SlamConfig field; all private (~)
+PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(SlamConfig))
+
+
+class SlamInputError(RuntimeError):
+    """A scan could not be used (frame unknown, no odometry tf, bad scan); the message says why."""
+
+
+class SlamFrontend:
+    """Turn LaserScan messages into core updates, resolving frames through ``lookup``."""
+
+    def __init__(self, cfg: SlamConfig, lookup: Lookup, base_frame: str = "base_footprint",
+                 odom_frame: str = "odom") -> None:
+        self.slam = Slam(cfg)
+        self.lookup = lookup
+        self.base_frame = base_frame
+        self.odom_frame = odom_frame
+        self._sensor: dict[str, Pose2D] = {}
+
+    def sensor_pose(self, frame: str, stamp) -> Pose2D:
+        """Pose of the scan frame in the base frame (static, cached per frame)."""
+        if frame not in self._sensor:
+            if not frame:
+                raise SlamInputError("scan has an empty header.frame_id")
+            try:
+                t = self.lookup(self.base_frame, frame, stamp)
+            except Exception as exc:  # tf2 raises several unrelated types
+                raise SlamInputError(f"scan is in frame '{frame}', which tf cannot relate to the base "
+                                     f"frame '{self.base_frame}': {exc}") from exc
+            self._sensor[frame] = transform_to_pose2d(t)
+        return self._sensor[frame]
+
+    def odom_pose(self, stamp) -> Pose2D:
+        """Pose of the base in the odometry frame at ``stamp``."""
+        try:
+            return transform_to_pose2d(self.lookup(self.odom_frame, self.base_frame, stamp))
+        except Exception as exc:
+            raise SlamInputError(f"no odometry tf {self.odom_frame} -> {self.base_frame} at "
+                                 f"t = {stamp.to_sec():.3f} s: {exc}") from exc
+
+    def process(self, msg: LaserScan) -> Pose2D:
+        """Feed one scan; returns the base pose in the map.  Raises :class:`SlamInputError`."""
+        if len(msg.ranges) == 0:
+            raise SlamInputError(f"scan at t = {msg.header.stamp.to_sec():.3f} s has zero beams")
+        sensor = self.sensor_pose(msg.header.frame_id, msg.header.stamp)
+        odom = self.odom_pose(msg.header.stamp)
+        cfg = self.slam.cfg
+        try:
+            scan = scan_from_ranges(np.asarray(msg.ranges, dtype=float), msg.angle_min, msg.angle_increment,
+                                    msg.range_min, msg.range_max, sensor,
+                                    max_usable_range=min(cfg.maxUrange, msg.range_max),
+                                    max_range=cfg.maxRange or None)
+        except ScanError as exc:
+            raise SlamInputError(f"scan at t = {msg.header.stamp.to_sec():.3f} s: {exc}") from exc
+        return self.slam.add_scan(msg.header.stamp.to_sec(), scan, odom)
+
+
+def tum_lines(trajectory: list[tuple[float, Pose2D]]) -> list[str]:
+    """TUM trajectory lines ``t x y z qx qy qz qw`` (one per scan, the scan's stamp)."""
+    out = []
+    for t, p in trajectory:
+        out.append(f"{t:.9f} {p.x:.6f} {p.y:.6f} 0 0 0 {math.sin(p.yaw / 2):.9f} {math.cos(p.yaw / 2):.9f}")
+    return out

@@ -1,0 +1,189 @@
+"""SLAM core: ray casting + log-odds, scan matcher, pose graph, loop closure (no master)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN
+from chefbot_navigation.slam.mapper import Slam, SlamConfig
+from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
+from chefbot_navigation.slam.pose_graph import PoseGraph
+from chefbot_navigation.slam.scan import ScanError, scan_from_ranges, transform_points
+from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
+from chefbot_navigation.slam.synthetic import box_segments, cast, noisy_odometry, square_corridor, square_route
+
+
+# ---------------------------------------------------------------- ray casting / log-odds
+def test_ray_marks_free_cells_and_end_cell():
+    g = LogOddsGrid(0.1, (-1.0, -1.0, 3.0, 3.0), LogOddsParams(l_occ=0.9, l_free=-0.7))
+    g.integrate(np.array([0.05, 0.05]), np.array([[1.05, 0.05]]), np.array([True]))
+    occ = g.to_occupancy()
+    row = 10                                   # y = 0.05 with origin -1.0
+    assert occ.data[row, 20] == UNKNOWN or g.l[row, 20] == pytest.approx(0.9)
+    assert g.l[row, 20] == pytest.approx(0.9)                       # hit cell x = 1.05
+    assert np.allclose(g.l[row, 10:20], -0.7)                        # x = 0.05 .. 0.95 passed
+    assert g.l[row, 21] == 0 and g.l[row, 9] == 0 and not g.l[row + 1].any()
+    # trinary convention: one hit -> p 0.71 > 0.65 -> occupied; one pass p 0.33 -> unknown
+    assert occ.data[row, 20] == OCCUPIED and occ.data[row, 15] == UNKNOWN
+    g.integrate(np.array([0.05, 0.05]), np.array([[1.05, 0.05]]), np.array([True]))
+    g.integrate(np.array([0.05, 0.05]), np.array([[1.05, 0.05]]), np.array([True]))
+    assert (g.to_occupancy().data[row, 10:20] == FREE).all()         # 3 passes: p 0.11 < 0.196
+
+
+def test_no_return_beam_clears_without_marking_and_each_cell_once_per_scan():
+    g = LogOddsGrid(0.1, (-1.0, -1.0, 1.0, 1.0))
+    ends = np.array([[0.55, 0.05], [0.55, 0.07]])       # two beams through the same cells
+    g.integrate(np.array([0.05, 0.05]), ends, np.array([False, False]))
+    row = 10
+    assert np.allclose(g.l[row, 10:16], g.params.l_free)             # end cell cleared too, once
+    assert (g.l <= 0).all()
+
+
+def test_diagonal_ray_and_grid_growth():
+    g = LogOddsGrid(0.05, (-0.5, -0.5, 0.5, 0.5), grow_margin=0.5)
+    g.integrate(np.array([0.0, 0.0]), np.array([[3.0, 3.0]]), np.array([True]))
+    info = g.info
+    assert info.origin_x == pytest.approx(-0.5) and info.origin_x + info.width * 0.05 > 3.0
+    r, c = info.world_to_cell(3.0, 3.0)
+    assert g.l[r, c] > 0
+    xs = np.linspace(0.01, 2.95, 50)
+    r, c = info.world_to_cell(xs, xs)
+    assert (g.l[r, c] < 0).all()                       # every cell on the diagonal cleared
+
+
+def test_scan_rep117_classes():
+    ranges = np.array([1.0, np.inf, -np.inf, np.nan, 0.2, 9.5, 7.9])
+    s = scan_from_ranges(ranges, 0.0, 0.1, 0.45, 8.0, Pose2D(0.1, 0.0, 0.0), max_usable_range=5.0)
+    # 1.0 hit; +inf and 9.5 (> range_max) clear to 5 m; -inf, NaN, 0.2 (< range_min) dropped;
+    # 7.9 is a hit beyond the usable range: clears to 5 m, marks nothing
+    assert s.hit.tolist() == [True, False, False, False]
+    lengths = np.hypot(*(s.ends - s.origin).T)
+    assert lengths == pytest.approx([1.0, 5.0, 5.0, 5.0])
+    with pytest.raises(ScanError, match="zero beams"):
+        scan_from_ranges(np.zeros(0), 0.0, 0.1, 0.1, 8.0, Pose2D(), 5.0)
+    with pytest.raises(ScanError, match="angle_increment"):
+        scan_from_ranges(np.ones(3), 0.0, float("nan"), 0.1, 8.0, Pose2D(), 5.0)
+
+
+# ---------------------------------------------------------------- scan matcher
+def _room() -> np.ndarray:
+    return np.vstack([box_segments(-3, -2, 4, 3), box_segments(1.0, 0.5, 1.6, 1.1),
+                      box_segments(-2.0, -1.5, -1.5, -1.3)])
+
+
+def _scan_at(segs: np.ndarray, pose: Pose2D, fov: float = 2 * math.pi, n: int = 360, rmax: float = 8.0):
+    angles = -fov / 2 + fov * np.arange(n) / n
+    r = cast(segs, (pose.x, pose.y), angles + pose.yaw, rmax)
+    return scan_from_ranges(r, -fov / 2, fov / n, 0.05, rmax, Pose2D(), rmax)
+
+
+@pytest.mark.parametrize("dx,dy,dyaw", [(0.3, -0.3, math.radians(15)), (-0.25, 0.2, math.radians(-12)),
+                                        (0.0, 0.3, 0.0)])
+def test_matcher_recovers_known_offset(dx, dy, dyaw):
+    segs = _room()
+    truth = Pose2D(0.2, 0.1, 0.3)
+    ref = _scan_at(segs, Pose2D(0.0, 0.0, 0.0))
+    fld = LikelihoodField(transform_points(Pose2D(), ref.hits), 0.05, sigma=0.07)
+    scan = _scan_at(segs, truth)
+    prior = Pose2D(truth.x + dx, truth.y + dy, truth.yaw + dyaw)
+    res = match(fld, scan.hits, prior, SearchWindow(0.35, math.radians(17), math.radians(1)))
+    assert res.pose.distance(truth) < 0.03, res
+    assert abs(wrap_angle(res.pose.yaw - truth.yaw)) < math.radians(1.0)
+    assert res.score > 0.8
+
+
+def test_matcher_on_narrow_depth_camera_scan():
+    segs = _room()
+    truth = Pose2D(-1.0, 0.5, 0.2)
+    fov = math.radians(58)
+    ref = [transform_points(Pose2D(-1.0, 0.5, a), _scan_at(segs, Pose2D(-1.0, 0.5, a), fov, 160).hits)
+           for a in (-0.4, 0.0, 0.4)]
+    fld = LikelihoodField(np.vstack(ref), 0.05, sigma=0.07)
+    scan = _scan_at(segs, truth, fov, 160)
+    res = match(fld, scan.hits, Pose2D(-0.85, 0.4, 0.1), SearchWindow(0.25, 0.25, 0.0175))
+    assert res.pose.distance(truth) < 0.04 and abs(wrap_angle(res.pose.yaw - truth.yaw)) < 0.02
+
+
+# ---------------------------------------------------------------- pose graph
+def test_pose_graph_distributes_loop_error():
+    true = [Pose2D(0, 0, 0), Pose2D(1, 0, math.pi / 2), Pose2D(1, 1, math.pi), Pose2D(0, 1, -math.pi / 2)]
+    g = PoseGraph()
+    drift = [Pose2D(0, 0, 0), Pose2D(1.05, 0, math.pi / 2 + 0.05), Pose2D(1.1, 1.1, math.pi + 0.1),
+             Pose2D(0.1, 1.2, -math.pi / 2 + 0.15)]
+    for p in drift:
+        g.add_node(p)
+    for i in range(3):
+        g.add_edge(i, i + 1, true[i].inverse().compose(true[i + 1]), (0.05, 0.05, 0.02))
+    g.add_edge(3, 0, true[3].inverse().compose(true[0]), (0.05, 0.05, 0.02), loop=True)
+    g.optimize()
+    for p, q in zip(g.poses, true, strict=True):
+        assert p.distance(q) < 1e-3 and abs(wrap_angle(p.yaw - q.yaw)) < 1e-3
+    with pytest.raises(ValueError, match="edge"):
+        g.add_edge(0, 9, Pose2D(), (1, 1, 1))
+
+
+# ---------------------------------------------------------------- whole SLAM
+def _run_corridor(cfg: SlamConfig, seed: int = 3, yaw_bias: float = 0.02):
+    """Two laps of the square corridor with a 180 deg, 6 m lidar and drifting odometry."""
+    segs = square_corridor()
+    truth = square_route(laps=2.0)
+    odom = noisy_odometry(truth, np.random.default_rng(seed), yaw_bias=yaw_bias)
+    slam = Slam(cfg)
+    n, fov, rmax = 180, math.pi, 6.0
+    angles = -fov / 2 + fov * np.arange(n) / n
+    for k, (tp, op) in enumerate(zip(truth, odom, strict=True)):
+        r = cast(segs, (tp.x, tp.y), angles + tp.yaw, rmax)
+        slam.add_scan(0.1 * k, scan_from_ranges(r, -fov / 2, fov / n, 0.05, rmax, Pose2D(), 5.5), op)
+    est = slam.trajectory()
+    err = np.array([p.distance(q) for (_, p), q in zip(est, truth, strict=True)])
+    odo_err = np.array([p.distance(q) for p, q in zip(odom, truth, strict=True)])
+    return slam, segs, err, odo_err
+
+
+def _double_walls(slam: Slam, segs: np.ndarray) -> float:
+    """Fraction of occupied map cells farther than 2 cells from any true wall."""
+    occ = slam.occupancy()
+    r, c = np.nonzero(occ.data == OCCUPIED)
+    x, y = occ.info.cell_to_world(r, c)
+    pts = np.column_stack((x, y))
+    a, b = segs[:, :2], segs[:, 2:]
+    ab = b - a
+    t = np.clip(((pts[:, None, :] - a[None]) * ab[None]).sum(-1) / (ab ** 2).sum(-1)[None], 0, 1)
+    d = np.linalg.norm(pts[:, None, :] - (a[None] + t[..., None] * ab[None]), axis=-1).min(axis=1)
+    return float((d > 2.5 * occ.info.resolution).mean())
+
+
+def test_tracking_on_square_corridor():
+    slam, segs, err, odo_err = _run_corridor(SlamConfig())
+    assert odo_err.max() > 0.5                           # the odometry really drifts
+    assert np.sqrt((err ** 2).mean()) < 0.05, (np.sqrt((err ** 2).mean()), slam.stats)
+    assert _double_walls(slam, segs) < 0.01
+
+
+def test_loop_closure_on_square_corridor():
+    # odometry-only chain (no scan-to-map tracking): drift ~1 m by the time the loop closes, so
+    # only the loop closures + pose-graph optimisation can bring the second lap onto the first
+    cfg = dict(scan_matching=False, loop_min_travel=8.0, loop_xy=0.6, loop_yaw=0.3)
+    slam, segs, err, _ = _run_corridor(SlamConfig(**cfg), yaw_bias=0.006)
+    assert slam.stats.loop_closures >= 1 and slam.stats.optimisations >= 1, slam.stats
+    assert err.max() < 0.15 and err[-1] < 0.1, (err.max(), err[-1], slam.stats)
+    assert _double_walls(slam, segs) < 0.02                          # no double wall
+    open_loop, _, err_open, _ = _run_corridor(SlamConfig(loop_closure=False, **cfg), yaw_bias=0.006)
+    assert err_open[-1] > 1.0
+    assert _double_walls(open_loop, segs) > 0.3
+
+
+def test_raw_odometry_map_is_worse():
+    slam, segs, err, _ = _run_corridor(SlamConfig(scan_matching=False))
+    assert np.sqrt((err ** 2).mean()) > 0.2
+    assert _double_walls(slam, segs) > 0.1
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError, match="delta"):
+        Slam(SlamConfig(delta=0.0))
+    with pytest.raises(ValueError, match="xmin"):
+        Slam(SlamConfig(xmin=5.0, xmax=1.0))

@@ -1,0 +1,129 @@
+"""slam_offline and the shared front end on the committed hotel bag (no master needed)."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rosbag
+import rospy
+from geometry_msgs.msg import TransformStamped
+from sensor_msgs.msg import LaserScan
+
+from chefbot_common.map_io import load_map
+from chefbot_navigation.slam.mapper import SlamConfig
+from chefbot_navigation.slam.metrics import map_quality
+from chefbot_navigation.slam_bag import BagError, run_bag
+from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
+
+PKG = Path(__file__).resolve().parents[2]
+BAG = PKG / "test" / "fixtures" / "hotel_route.bag"
+NODE = PKG / "nodes" / "slam_offline"
+TRUTH = PKG.parent / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+
+
+@pytest.fixture(scope="module")
+def short_bag(tmp_path_factory) -> Path:
+    """The first 60 s of the hotel bag (the start spin and the first leg)."""
+    out = tmp_path_factory.mktemp("bags") / "short.bag"
+    with rosbag.Bag(str(BAG)) as src, rosbag.Bag(str(out), "w") as dst:
+        for topic, msg, t in src.read_messages():
+            if t.to_sec() > 60.0:
+                break
+            dst.write(topic, msg, t)
+    return out
+
+
+def test_cli_writes_map_and_tum_trajectory(short_bag, tmp_path):
+    prefix, traj = tmp_path / "m", tmp_path / "traj.txt"
+    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(prefix), "--trajectory", str(traj)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "x real time" in r.stdout and "%" in r.stderr            # summary + progress bar
+    occ = load_map(f"{prefix}.yaml")
+    assert set(np.unique(occ.data)) <= {-1, 0, 100} and (occ.data == 100).sum() > 100
+    lines = traj.read_text().split()
+    rows = np.array(lines, dtype=float).reshape(-1, 8)
+    with rosbag.Bag(str(short_bag)) as b:
+        stamps = [m.header.stamp.to_sec() for _, m, _ in b.read_messages(topics=["/scan"])]
+    assert np.allclose(rows[:, 0], stamps)                          # one pose per scan, the scan's stamp
+    assert np.allclose(rows[:, 4:6], 0.0) and np.allclose(np.hypot(rows[:, 6], rows[:, 7]), 1.0)
+
+
+def test_cli_bad_inputs(tmp_path, short_bag):
+    r = subprocess.run([sys.executable, str(NODE), str(tmp_path / "none.bag"), str(tmp_path / "m")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "no such bag file" in r.stderr
+    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(tmp_path / "m"), "--scan-topic", "laser"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "has no topic '/laser'" in r.stderr and "/scan" in r.stderr
+    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(tmp_path / "m"), "--base-frame", "base_link",
+                        "--odom-frame", "wheel_odom"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "no usable scan" in r.stderr and "wheel_odom" in r.stderr
+
+
+def test_offline_map_quality_on_whole_route():
+    res = run_bag(BAG, SlamConfig())
+    q = map_quality(res.front.slam.occupancy(), load_map(TRUTH))
+    assert q.matched > 0.85 and q.false_occupied < 0.02, q
+    raw = run_bag(BAG, SlamConfig(scan_matching=False, loop_closure=False))
+    q_raw = map_quality(raw.front.slam.occupancy(), load_map(TRUTH))
+    assert q_raw.false_occupied > 0.3                               # raw odometry: what matching buys
+
+
+def test_bag_without_scan_topic(tmp_path):
+    bag = tmp_path / "noscan.bag"
+    with rosbag.Bag(str(bag), "w") as b:
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = "odom", "base_footprint"
+        t.transform.rotation.w = 1.0
+        from tf2_msgs.msg import TFMessage
+        b.write("/tf", TFMessage([t]), rospy.Time(1))
+    with pytest.raises(BagError, match="no topic '/scan'"):
+        run_bag(bag, SlamConfig())
+
+
+def _scan(frame: str = "laser", n: int = 10, stamp: float = 1.0) -> LaserScan:
+    s = LaserScan()
+    s.header.frame_id, s.header.stamp = frame, rospy.Time(stamp)
+    s.angle_min, s.angle_increment = -0.5, 1.0 / max(n, 1)
+    s.range_min, s.range_max = 0.1, 5.0
+    s.ranges = [2.0] * n
+    return s
+
+
+def _lookup_factory(known: dict[tuple[str, str], TransformStamped]):
+    def lookup(target, source, stamp):
+        if (target, source) not in known:
+            raise LookupError(f'"{target}" passed to lookupTransform argument target_frame does not exist')
+        return known[(target, source)]
+    return lookup
+
+
+def _identity(parent: str, child: str) -> TransformStamped:
+    t = TransformStamped()
+    t.header.frame_id, t.child_frame_id = parent, child
+    t.transform.rotation.w = 1.0
+    return t
+
+
+def test_frontend_bad_inputs_name_the_problem():
+    known = {("base_footprint", "laser"): _identity("base_footprint", "laser"),
+             ("odom", "base_footprint"): _identity("odom", "base_footprint")}
+    front = SlamFrontend(SlamConfig(), _lookup_factory(known))
+    front.process(_scan())                                           # fine
+    with pytest.raises(SlamInputError, match="frame 'camera_x'"):
+        front.process(_scan(frame="camera_x"))
+    with pytest.raises(SlamInputError, match="zero beams"):
+        front.process(_scan(n=0))
+    no_odom = SlamFrontend(SlamConfig(), _lookup_factory({("base_footprint", "laser"): known[("base_footprint",
+                                                                                                "laser")]}))
+    with pytest.raises(SlamInputError, match="no odometry tf odom -> base_footprint"):
+        no_odom.process(_scan())
+    bad = _scan()
+    bad.angle_increment = math.nan
+    with pytest.raises(SlamInputError, match="angle"):
+        front.process(bad)
