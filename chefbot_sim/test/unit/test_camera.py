@@ -89,3 +89,22 @@ def test_depth_cloud_of_the_wall(sim):
 def test_registered_stride_validated():
     with pytest.raises(SimConfigError, match="registered_stride"):
         SimOptions(registered_stride=0).validate()
+
+
+def test_dense_depth_keeps_the_exact_scan_band(sim):
+    """With the rendered (dense) depth on, the rows depth_to_scan reads are still the exact ray cast:
+    the renderer's depth differs at object edges, which moved amcl off its route."""
+    sim.dense_depth = False
+    cast = sim.depth_image()
+    sim.dense_depth = True
+    try:
+        dense = sim.depth_image()
+    finally:
+        sim.dense_depth = False
+    band = slice(sim._depth_rows[0], sim._depth_rows[-1] + 1)
+    a, b = cast[band], dense[band]
+    np.testing.assert_array_equal(np.isfinite(a), np.isfinite(b))
+    noise = sim.params.depth_camera.noise_stddev
+    assert np.nanmax(np.abs(a - b)) <= 8 * noise + 1e-6
+    # outside the band the rendered image is dense where the cast one is coarse
+    assert np.isfinite(dense).sum() >= np.isfinite(cast).sum()
