@@ -31,10 +31,10 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
 
 from chefbot_common.map_io import load_map  # noqa: E402
+from chefbot_navigation.ros_slam_bag import run_bag  # noqa: E402
 from chefbot_navigation.slam.mapper import SlamConfig  # noqa: E402
 from chefbot_navigation.slam.metrics import ate_rms, map_quality  # noqa: E402
 from chefbot_navigation.slam.synthetic import OdometryNoise  # noqa: E402
-from chefbot_navigation.slam_bag import run_bag  # noqa: E402
 
 BAG = ROOT / "chefbot_navigation" / "test" / "fixtures" / "hotel_route.bag"
 TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"

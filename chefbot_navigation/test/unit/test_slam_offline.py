@@ -14,9 +14,9 @@ from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import LaserScan
 
 from chefbot_common.map_io import load_map
+from chefbot_navigation.ros_slam_bag import BagError, run_bag
 from chefbot_navigation.slam.mapper import SlamConfig
 from chefbot_navigation.slam.metrics import map_quality
-from chefbot_navigation.slam_bag import BagError, run_bag
 from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
 
 PKG = Path(__file__).resolve().parents[2]
