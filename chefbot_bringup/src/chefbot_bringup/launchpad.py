@@ -71,6 +71,7 @@ class LaunchpadConfig:
 
     @property
     def max_ticks_per_s(self) -> float:
+        """Fastest wheel speed in encoder ticks/s (max_wheel_speed x ticks_meter)."""
         return self.max_wheel_speed * self.ticks_meter
 
     def battery_fraction(self, volts: float) -> float:
@@ -104,11 +105,13 @@ class LineAssembler:
         self._first = True
 
     def reset(self) -> None:
+        """Forget any partial line (the port was reopened)."""
         self._buf.clear()
         self._overlong = False
         self._first = True
 
     def feed(self, data: bytes) -> list[bytes | proto.LineError]:
+        """Split received bytes into complete lines (without CR/LF) or LineErrors for overlong ones."""
         out: list[bytes | proto.LineError] = []
         for byte in data:
             if byte in (10, 13):  # '\n' or '\r': end of line; an empty one ('\r\n') is skipped
@@ -135,6 +138,7 @@ class LineAssembler:
 
 @dataclass
 class EncoderEvent:
+    """An encoder counter reset or impossible jump that was absorbed, and why (for the log)."""
     kind: str     # "reset" | "jump"
     detail: str
 
@@ -235,10 +239,12 @@ class BoardClock:
         self._wraps = 0
 
     def reset(self) -> None:
+        """Forget the board's clock (a new connection)."""
         self._last = None
         self._wraps = 0
 
     def update(self, micros: int) -> float:
+        """The board's micros() stamp as seconds since it booted, counting 32-bit wraps."""
         if self._last is not None and micros < self._last and self._last - micros > 2**31:
             self._wraps += 1       # the counter wrapped (every 71.6 min)
         self._last = micros
@@ -246,11 +252,13 @@ class BoardClock:
 
     @property
     def seconds(self) -> float | None:
+        """The last board time (s), or None before the first stamp."""
         return None if self._last is None else (self._wraps * 2**32 + self._last) * 1e-6
 
 
 @dataclass
 class LinkStats:
+    """Counters of the serial link for the diagnostics (lines good/bad, reconnects, commands)."""
     lines_ok: int = 0
     lines_bad: Counter = field(default_factory=Counter)
     crc_lines: int = 0
@@ -264,6 +272,7 @@ class LinkStats:
 
     @property
     def bad_total(self) -> int:
+        """Number of bad lines of every kind."""
         return sum(self.lines_bad.values())
 
 
@@ -297,6 +306,7 @@ class LaunchpadCore:
 
     # ---- link
     def on_open(self, t: float) -> None:
+        """The port was (re)opened at time ``t`` (s): start with a clean parser, board clock and encoders."""
         self.assembler.reset()
         self.board_clock.reset()
         self.encoders.retime(self.silence_timeout)
@@ -306,6 +316,7 @@ class LaunchpadCore:
         self._last_rx = t
 
     def on_close(self) -> None:
+        """The port was closed or lost: count a reconnect, not connected nor heard any more."""
         if self.connected:
             self.stats.reconnects += 1
         self.connected = False
@@ -378,9 +389,11 @@ class LaunchpadCore:
 
     # ---- transmit
     def set_left(self, value: float, t: float) -> None:
+        """New left wheel command (motor units) received at time ``t`` (s)."""
         self._cmd[0], self._cmd_t[0] = value, t
 
     def set_right(self, value: float, t: float) -> None:
+        """New right wheel command (motor units) received at time ``t`` (s)."""
         self._cmd[1], self._cmd_t[1] = value, t
 
     def command(self, t: float) -> bytes:
@@ -397,6 +410,7 @@ class LaunchpadCore:
         return proto.format_command(left, right, self.checksum_commands)
 
     def stop_command(self) -> bytes:
+        """The ``s 0 0`` line (and forget the held commands)."""
         self._cmd = [0.0, 0.0]
         return proto.format_command(0.0, 0.0, self.checksum_commands)
 

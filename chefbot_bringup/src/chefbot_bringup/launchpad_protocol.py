@@ -118,22 +118,22 @@ Message = Battery | TimeStamp | Encoders | Ultrasonic | SpeedEcho | Quaternion |
 
 
 # ----------------------------------------------------------------- parsing
-def _int(field: str, name: str, lo: int, hi: int) -> int:
-    if not _INT.match(field):
-        raise LineError("bad_number", f"{name}={field!r} is not an integer")
-    v = int(field)
+def _number(field: str, name: str, lo: float, hi: float, integer: bool) -> float:
+    """``field`` as an int (``integer``) or float within [lo, hi]; LineError naming ``name`` if not."""
+    if not (_INT if integer else _DEC).match(field):
+        raise LineError("bad_number", f"{name}={field!r} is not {'an integer' if integer else 'a decimal number'}")
+    v = int(field) if integer else float(field)
     if not lo <= v <= hi:
         raise LineError("out_of_range", f"{name}={v} outside [{lo}, {hi}]")
     return v
+
+
+def _int(field: str, name: str, lo: int, hi: int) -> int:
+    return _number(field, name, lo, hi, integer=True)
 
 
 def _dec(field: str, name: str, lo: float, hi: float) -> float:
-    if not _DEC.match(field):
-        raise LineError("bad_number", f"{name}={field!r} is not a decimal number")
-    v = float(field)
-    if not lo <= v <= hi:
-        raise LineError("out_of_range", f"{name}={v} outside [{lo}, {hi}]")
-    return v
+    return _number(field, name, lo, hi, integer=False)
 
 
 _INT32 = (-(2**31), 2**31 - 1)

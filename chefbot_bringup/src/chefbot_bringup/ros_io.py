@@ -5,12 +5,16 @@ message packages; time stamps are passed in by the caller.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Quaternion, TransformStamped
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, Image, LaserScan
+from sensor_msgs.msg import BatteryState, CameraInfo, Image, Imu, LaserScan, Range
 
 from chefbot_bringup.depth_scan import Intrinsics, Scan
+from chefbot_bringup.launchpad import LaunchpadConfig, LaunchpadCore, battery_status, link_status
 from chefbot_bringup.odometry import OdometryState
 from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
 
@@ -108,3 +112,60 @@ def odometry_to_msgs(st: OdometryState, stamp, odom_frame: str,
     tf.transform.translation.y = st.y
     tf.transform.rotation = q
     return odom, tf
+
+
+# ---------------------------------------------------------------- launchpad_node's messages
+def ultrasonic_to_range(cm: float, stamp, frame_id: str) -> Range:
+    """The board's ultrasonic reading (cm; 0 = no echo) as sensor_msgs/Range (m; no echo = +inf, REP 117)."""
+    r = Range(radiation_type=Range.ULTRASOUND, field_of_view=math.radians(15.0), min_range=0.02, max_range=4.0)
+    r.header.stamp, r.header.frame_id = stamp, frame_id
+    r.range = float("inf") if cm <= 0 else cm / 100.0
+    return r
+
+
+def board_quaternion_to_imu(x: float, y: float, z: float, w: float, stamp, frame_id: str) -> Imu | None:
+    """The board's DMP orientation as sensor_msgs/Imu (normalised); None if the quaternion's norm is < 0.5."""
+    norm = math.sqrt(x ** 2 + y ** 2 + z ** 2 + w ** 2)
+    if norm < 0.5:
+        return None
+    imu = Imu()
+    imu.header.stamp, imu.header.frame_id = stamp, frame_id
+    imu.orientation.x, imu.orientation.y, imu.orientation.z, imu.orientation.w = x / norm, y / norm, z / norm, w / norm
+    # DMP orientation: ~0.05 rad (≈3°) standard deviation; rates and accelerations are
+    # not sent by the board: covariance[0] = -1 marks them unknown (sensor_msgs/Imu).
+    imu.orientation_covariance = [0.0025, 0, 0, 0, 0.0025, 0, 0, 0, 0.0025]
+    imu.angular_velocity_covariance[0] = -1.0
+    imu.linear_acceleration_covariance[0] = -1.0
+    return imu
+
+
+def battery_to_state(volts: float, fraction: float, stamp) -> BatteryState:
+    """The board's battery voltage (V) as sensor_msgs/BatteryState; ``fraction`` (0..1) of charge if present."""
+    b = BatteryState(voltage=volts, present=volts > 0.5)
+    b.header.stamp = stamp
+    b.percentage = fraction if b.present else float("nan")
+    b.power_supply_status = BatteryState.POWER_SUPPLY_STATUS_UNKNOWN
+    return b
+
+
+def launchpad_diagnostics(core: LaunchpadCore, p: LaunchpadConfig, now: float, last_error: str,
+                          battery_volts: float | None, stamp) -> DiagnosticArray:
+    """The link's and the battery's diagnostic statuses; ``now`` is monotonic time (s) as the core's."""
+    s = core.stats
+    level, text = link_status(core, now, p.port, last_error)
+    st = DiagnosticStatus(level=level, name="chefbot: launchpad", message=text, hardware_id=p.port)
+    # connected = the board is heard from (port open alone is port_open)
+    values = {"port": p.port, "connected": core.alive(now), "port_open": core.connected,
+              "lines_ok": s.lines_ok,
+              "lines_bad": s.bad_total, "lines_with_crc": s.crc_lines, "reconnects": s.reconnects,
+              "encoder_resets": s.encoder_resets, "encoder_jumps": s.encoder_jumps,
+              "commands_sent": s.commands_sent, "commands_zeroed_link_silent": s.commands_zeroed,
+              "board_drive_state": s.board_state,
+              "board_hello": " ".join(s.hello) if s.hello else None, "last_error": last_error}
+    values.update({f"bad_{k}": v for k, v in sorted(s.lines_bad.items())})
+    st.values = [KeyValue(k, str(v)) for k, v in values.items()]
+    b_level, b_text = battery_status(p, battery_volts)
+    bat = DiagnosticStatus(level=b_level, name="chefbot: battery", message=b_text, hardware_id=p.port)
+    arr = DiagnosticArray(status=[st, bat])
+    arr.header.stamp = stamp
+    return arr

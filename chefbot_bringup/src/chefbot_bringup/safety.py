@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SonarLimitConfig:
+    """Distances (m), timeout (s) and speed cap (m/s) of the ultrasonic forward-speed limiter."""
     stop_distance: float = 0.25   # at or below: no forward motion (m)
     slow_distance: float = 0.60   # from here down to stop_distance: linear slow-down (m)
     timeout: float = 0.5          # a reading older than this is stale (s)
@@ -67,6 +68,7 @@ class SonarLimiter:
         return True
 
     def stale(self, t: float) -> bool:
+        """True if no ultrasonic reading arrived within the timeout at time ``t`` (s)."""
         return self._t is None or t - self._t > self.cfg.timeout
 
     def factor_cap(self, t: float) -> tuple[float, float]:

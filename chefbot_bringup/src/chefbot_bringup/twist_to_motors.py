@@ -20,6 +20,7 @@ from chefbot_bringup.safety import SonarLimiter
 
 @dataclass(frozen=True)
 class TwistToMotorsConfig:
+    """Parameters of twist_to_motors (param/twist_to_motors.yaml); units in the comments."""
     base_width: float = 0.30        # wheel separation (m)
     rate: float = 50.0              # output rate (Hz)
     timeout_ticks: int = 18         # output ticks to keep going after the last command
@@ -78,6 +79,7 @@ class TwistToMotors:
 
     @property
     def active(self) -> bool:
+        """True while a command is being held (fewer than timeout_ticks ticks since the last)."""
         return self._ticks_since_cmd < self.cfg.timeout_ticks
 
     def current(self, t: float) -> tuple[float, float] | None:

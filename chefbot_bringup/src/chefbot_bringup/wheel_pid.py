@@ -103,6 +103,7 @@ class WheelVelocityEstimator:
         self._hist: deque[tuple[float, int]] = deque(maxlen=int(cfg.rolling_pts) + 1)
 
     def reset(self) -> None:
+        """Forget the tick history (the next reading starts a new estimate)."""
         self._unwrap.reset()
         self._hist.clear()
 
@@ -214,6 +215,7 @@ class WheelController:
 
     @property
     def active(self) -> bool:
+        """True while a target is being held (fewer than timeout_ticks ticks since the last)."""
         return self._ticks_since_target < self.cfg.timeout_ticks
 
     def set_target(self, target: float) -> bool:
@@ -225,6 +227,7 @@ class WheelController:
         return True
 
     def add_reading(self, raw_ticks: int, t: float) -> None:
+        """A raw encoder count read at time ``t`` (s)."""
         self.estimator.add_reading(raw_ticks, t)
         self._t_reading = t
 

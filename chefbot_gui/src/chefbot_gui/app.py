@@ -71,6 +71,7 @@ class GuiParams:
 
     @property
     def order_mode(self) -> OrderMode:
+        """The delivery order mode named by the ``order`` param."""
         return ORDER_NAMES[self.order]
 
 
@@ -163,9 +164,11 @@ class MasterWatcher(QObject):
         self._thread = threading.Thread(target=self._run, name="chefbot_gui_master", daemon=True)
 
     def start(self) -> None:
+        """Start watching the ROS master in the background thread."""
         self._thread.start()
 
     def stop(self) -> None:
+        """Stop watching and wait for the thread to end."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout=self._period_s + self._timeout_s + 1.0)

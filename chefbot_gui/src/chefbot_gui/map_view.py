@@ -73,6 +73,7 @@ class MapView(QWidget):
         self.update()
 
     def has_map(self) -> bool:
+        """True once a map has been set."""
         return self._image is not None
 
     def set_markers(self, home: Marker, tables: Sequence[Marker]) -> None:
@@ -128,6 +129,7 @@ class MapView(QWidget):
         return grid.image_to_world((px - ox) / s, (py - oy) / s)
 
     def metres_to_pixels(self, m: float) -> float:
+        """A length in metres as widget pixels at the current zoom."""
         grid = self._frame()
         return m / grid.resolution * self._fit(grid)[0]
 
@@ -144,6 +146,7 @@ class MapView(QWidget):
 
     # ------------------------------------------------------------------ Qt events
     def mousePressEvent(self, event: QMouseEvent) -> None:
+        """Qt: a left click on a table marker emits tableClicked with its key."""
         if event.button() == Qt.LeftButton:
             key = self.table_at(event.pos().x(), event.pos().y())
             if key is not None:
@@ -151,6 +154,7 @@ class MapView(QWidget):
         super().mousePressEvent(event)
 
     def paintEvent(self, event: QPaintEvent) -> None:
+        """Qt: draw the map, markers, plan and robot."""
         qp = QPainter(self)
         qp.setRenderHint(QPainter.Antialiasing)
         qp.fillRect(self.rect(), QColor("#9e9e9e"))

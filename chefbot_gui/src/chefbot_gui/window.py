@@ -116,34 +116,42 @@ class RobotGuiWindow(QWidget):
     # ------------------------------------------------------------------ ROS bridge → presenter
     @pyqtSlot(str, bool)
     def on_master(self, uri: str, reachable: bool) -> None:
+        """Slot: the ROS master at ``uri`` became reachable or not."""
         self.presenter.on_master(uri, reachable)
 
     @pyqtSlot(bool)
     def on_server(self, connected: bool) -> None:
+        """Slot: the move_base action server connected or went away."""
         self.presenter.on_server(connected)
 
     @pyqtSlot(int, str, str)
     def on_goal_done(self, goal_id: int, outcome: str, text: str) -> None:
+        """Slot: a goal ended with ``outcome`` and move_base's text."""
         self.presenter.on_goal_done(goal_id, Outcome(outcome), text)
 
     @pyqtSlot(float, float, float)
     def on_robot_pose(self, x: float, y: float, yaw: float) -> None:
+        """Slot: the robot's pose in the map frame (m, rad)."""
         self.presenter.on_robot_pose(Pose(x, y, yaw))
 
     @pyqtSlot(object)
     def on_plan(self, points: list) -> None:
+        """Slot: a new global plan (map-frame points, m)."""
         self.presenter.on_plan(points)
 
     @pyqtSlot(object, object)
     def on_map(self, grey: bytes, grid: GridInfo) -> None:
+        """Slot: a new map image and its grid geometry."""
         self.mapView.set_map(grey, grid)
 
     @pyqtSlot(float, float, bool)
     def on_battery(self, percentage: float, voltage: float, present: bool) -> None:
+        """Slot: the battery state (fraction 0..1, V, present)."""
         self.presenter.on_battery(percentage, voltage, present)
 
     @pyqtSlot(str, int, str)
     def on_diagnostic(self, name: str, level: int, message: str) -> None:
+        """Slot: one diagnostic status (name, level, message)."""
         self.presenter.on_diagnostic(name, level, message)
 
     # ------------------------------------------------------------------ presenter → widgets

@@ -15,6 +15,7 @@ class DeliverError(ValueError):
 
 
 def parser() -> argparse.ArgumentParser:
+    """Command-line parser of the ``deliver`` tool."""
     ap = argparse.ArgumentParser(
         prog="deliver", description="Send the robot to named tables in order (move_base action), printing the "
         "navigation state; exit 0 when every one was reached.")

@@ -1,25 +1,24 @@
-"""tf lookups as planar poses, with amcl's pairing of scans and odometry (ROS side: uses rospy and tf2_ros).
+"""tf lookups as planar poses (on ros_util.PlanarTf), with amcl's pairing of scans and odometry
+(ROS side: uses rospy and tf2_ros).
 
 Kept out of the node so that it stays wiring only; the pure localization core never sees tf.
 """
 from __future__ import annotations
 
 import rospy
-import tf2_ros
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_io import transform_to_pose2d
+from chefbot_navigation.ros_util import TF_ERRORS, PlanarTf
 
-TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
-
-class TfPoses:
-    """Odometry pose of the base at a stamp, and the (static, cached) pose of sensor frames on the base."""
+class TfPoses(PlanarTf):
+    """Odometry pose of the base at a stamp, and the (static, cached) pose of sensor frames on the base
+    (a :class:`PlanarTf` whose global frame is the odometry frame)."""
 
     def __init__(self, odom_frame: str, base_frame: str, tolerance: float, cache_time: float = 30.0) -> None:
+        super().__init__(odom_frame, cache_time)
         self.odom_frame, self.base_frame, self.tolerance = odom_frame, base_frame, tolerance
-        self.buffer = tf2_ros.Buffer(cache_time=rospy.Duration(cache_time))
-        self.listener = tf2_ros.TransformListener(self.buffer)
         self.sensors: dict[str, Pose2D] = {}
 
     def odom_pose(self, stamp: rospy.Time | None) -> Pose2D | None:
@@ -30,14 +29,10 @@ class TfPoses:
         localization error.  If odometry does not reach the stamp within ``tolerance``
         the scan is not used (warned, with the odometry's age).
         """
-        try:
-            if stamp is None:
-                return transform_to_pose2d(self.buffer.lookup_transform(self.odom_frame, self.base_frame,
-                                                                        rospy.Time(0)))
-            return transform_to_pose2d(self.buffer.lookup_transform(self.odom_frame, self.base_frame, stamp,
-                                                                    rospy.Duration(self.tolerance)))
-        except TF_ERRORS as exc:
-            err = str(exc)
+        pose, _, err = self.lookup(self.base_frame, stamp, self.tolerance if stamp is not None else 0.0)
+        if pose is not None:
+            return pose
+        err = err.split(": ", 1)[-1]   # PlanarTf's "no transform a -> b: " is said below
         try:
             latest = self.buffer.lookup_transform(self.odom_frame, self.base_frame, rospy.Time(0)).header.stamp
             err = f"the latest is {(stamp - latest).to_sec():.2f} s older than the scan" if stamp else err
@@ -60,5 +55,5 @@ class TfPoses:
 
     def clear(self) -> None:
         """Forget everything (time jumped backwards)."""
-        self.buffer.clear()
+        super().clear()
         self.sensors.clear()

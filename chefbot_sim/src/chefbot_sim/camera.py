@@ -28,10 +28,12 @@ NEAR_PLANE = 0.05  # m: TinyRenderer's near clip; nearer than any valid reading 
 class Renderer(Protocol):
     """What the camera needs of the facade (chefbot_sim.bullet.BulletSim)."""
 
-    def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]: ...
+    def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position and 3 x 3 rotation of link frame ``name``."""
 
     def render(self, width: int, height: int, eye: np.ndarray, rotation: np.ndarray, fy: float, near: float,
-               far: float, rgb: bool) -> tuple[np.ndarray | None, np.ndarray]: ...
+               far: float, rgb: bool) -> tuple[np.ndarray | None, np.ndarray]:
+        """Render an (RGB or None, depth m) image pair from a camera pose."""
 
 
 @dataclass

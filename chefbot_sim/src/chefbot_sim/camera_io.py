@@ -36,11 +36,13 @@ class CloudTopics:
         return self.want_points, self.want_registered
 
     def on_depth(self, depth: np.ndarray, stamp: Any) -> None:
+        """A new depth image (m): publish its point cloud if someone listens."""
         if self.want_points:
             pts = depth_to_points(depth, self.sim.depth_camera, min_range=self.cutoff)
             self.pub_points.publish(cloud_msg(pts, stamp, self.depth_frame))
 
     def on_rgb(self, stamp: Any) -> None:
+        """A new colour image: publish the registered (coloured) cloud if someone listens."""
         frame = self.sim.last_rgb
         if self.want_registered and frame is not None:
             stride = self.sim.options.registered_stride

@@ -51,6 +51,7 @@ DriftState = tuple[float, float, float | None, int]
 
 
 def initial_state(cfg: ImuDriftConfig) -> DriftState:
+    """The drift model's state at start: power-on gyro bias, no heading error, no sample yet."""
     return (cfg.gyro_bias, 0.0, None, 0)
 
 

@@ -87,13 +87,16 @@ class SimOptions:
     time_step: float = 1.0 / 240.0
 
     def battery_config(self) -> battery.BatteryConfig:
+        """The battery model's settings from these options."""
         return battery.BatteryConfig(chemistry=self.battery_chemistry, capacity_ah=self.battery_capacity_ah,
                                      initial_soc=self.battery_initial_soc, idle_current=self.battery_idle_current)
 
     def imu_drift_config(self) -> imu_model.ImuDriftConfig:
+        """The IMU drift model's settings from these options."""
         return imu_model.ImuDriftConfig(self.imu_relative_yaw, self.imu_gyro_bias, self.imu_gyro_bias_drift)
 
     def validate(self) -> None:
+        """Check the options; SimConfigError naming the first bad one."""
         if self.drive not in DRIVES:
             raise SimConfigError(f"drive must be one of {', '.join(DRIVES)}, got {self.drive!r}")
         if not (math.isfinite(self.battery_volts) and self.battery_volts >= 0):
@@ -123,6 +126,7 @@ class SimOptions:
 
     @property
     def wheel_noise(self) -> WheelNoise:
+        """The wheel noise model's settings from these options."""
         return WheelNoise(self.wheel_radius_error_left, self.wheel_radius_error_right, self.wheel_slip_stddev,
                           self.wheel_encoder_counts)
 
@@ -134,6 +138,7 @@ class CameraModel(Pinhole):
 
     @classmethod
     def from_fov(cls, width: int, height: int, horizontal_fov: float) -> CameraModel:
+        """A pinhole model of ``width`` x ``height`` px from its horizontal field of view (rad)."""
         f = (width / 2.0) / math.tan(horizontal_fov / 2.0)
         return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
 
@@ -165,6 +170,7 @@ def load_params(urdf_xml: str) -> Any:
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """3 x 3 rotation matrix of an (x, y, z, w) quaternion."""
     x, y, z, w = q
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -619,6 +625,7 @@ class Simulator:
 
     @property
     def spawned(self) -> list[str]:
+        """Names of the obstacles spawned since start, in order."""
         return [s.name for s in self._spawned]
 
     def _resync_wheels(self) -> None:
@@ -669,6 +676,7 @@ class Simulator:
         return self.bullet.save_state(), st, list(self._spawned)
 
     def restore(self, snap: tuple[int, _State, list[Shape]]) -> None:
+        """Go back to a :meth:`snapshot` (same spawned obstacles required, else ValueError)."""
         state_id, st, spawned = snap
         if [s.name for s in spawned] != self.spawned:
             raise ValueError("snapshot was taken with different spawned obstacles")

@@ -29,12 +29,14 @@ import numpy as np
 
 @dataclass(frozen=True)
 class WheelNoise:
+    """Wheel radius errors, slip and encoder quantisation of the simulated wheels (odometry error model)."""
     radius_error_left: float = 0.0    # fraction (0.003 = real rolling radius 0.3 % above nominal)
     radius_error_right: float = 0.0   # fraction
     slip_stddev: float = 0.0          # m per sqrt(m) of wheel travel
     encoder_counts: int = 0           # counts per wheel revolution to quantise to (0 = no quantisation)
 
     def validate(self) -> None:
+        """Check the values; ValueError naming the first bad one."""
         for name in ("radius_error_left", "radius_error_right"):
             v = getattr(self, name)
             if not (math.isfinite(v) and -0.2 < v < 0.2):
@@ -46,6 +48,7 @@ class WheelNoise:
 
     @property
     def active(self) -> bool:
+        """True if any radius error or slip is set."""
         return bool(self.radius_error_left or self.radius_error_right or self.slip_stddev)
 
 

@@ -100,6 +100,7 @@ class Capture:
         return frame
 
     def close(self) -> None:
+        """Release the camera."""
         self.cap.release()
 
 

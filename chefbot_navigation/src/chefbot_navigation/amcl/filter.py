@@ -97,6 +97,7 @@ class ParticleFilter:
         self._set(field.sample_free(n or self.cfg.max_particles, self.rng))
 
     def predict(self, old: Pose2D, new: Pose2D, noise: DiffMotionNoise) -> None:
+        """Motion update: move every particle by the odometry step ``old`` -> ``new`` plus noise."""
         self.particles = sample_motion(self.particles, old, new, noise, self.rng)
 
     def weigh(self, field: LikelihoodField, endpoints: np.ndarray, range_max: float) -> float:

@@ -111,17 +111,21 @@ class AmclConfig:
         self.laser_model()
 
     def filter_config(self) -> FilterConfig:
+        """The particle filter's settings (particle counts, KLD, recovery)."""
         return FilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
                             self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool)
 
     def motion_noise(self) -> DiffMotionNoise:
+        """The odometry motion model's noise (odom_alpha1..4)."""
         return DiffMotionNoise(self.odom_alpha1, self.odom_alpha2, self.odom_alpha3, self.odom_alpha4)
 
     def laser_model(self) -> LaserModel:
+        """The likelihood-field laser model's settings."""
         return LaserModel(self.laser_z_hit, self.laser_z_rand, self.laser_sigma_hit,
                           self.laser_likelihood_max_dist, self.occupied_threshold)
 
     def initial_cov(self) -> np.ndarray:
+        """Covariance (x m^2, y m^2, yaw rad^2) of the initial pose as a 3 x 3 array."""
         return np.diag([self.initial_cov_xx, self.initial_cov_yy, self.initial_cov_aa])
 
 
