@@ -59,6 +59,7 @@ class LogOddsGrid:
     # -- geometry ---------------------------------------------------------------------------
     @property
     def info(self) -> GridInfo:
+        """Geometry of the grid as it is now (it grows as the robot explores)."""
         h, w = self.l.shape
         return GridInfo(self.res, w, h, self.ox, self.oy, 0.0)
 
