@@ -56,15 +56,20 @@ def test_registered_depth_and_cloud_match_the_scene(sim):
     assert np.median(pts[red][:, 2]) == pytest.approx(1.65 - DEPTH_X, abs=0.05)
 
 
-def test_dense_depth_agrees_with_the_ray_caster(sim):
-    sim.teleport(Pose2D(0.0, 0.0, 0.0))
+def cast_and_dense_depth(sim) -> tuple[np.ndarray, np.ndarray]:
+    """The depth image ray-cast (band + coarse) and rendered in full, at the same pose."""
     sim.dense_depth = False
     cast = sim.depth_image()
     sim.dense_depth = True
     try:
-        dense = sim.depth_image()
+        return cast, sim.depth_image()
     finally:
         sim.dense_depth = False
+
+
+def test_dense_depth_agrees_with_the_ray_caster(sim):
+    sim.teleport(Pose2D(0.0, 0.0, 0.0))
+    cast, dense = cast_and_dense_depth(sim)
     rows = sim._band_rows
     both = np.isfinite(cast[rows]) & np.isfinite(dense[rows])
     assert both.mean() > 0.9
@@ -94,13 +99,7 @@ def test_registered_stride_validated():
 def test_dense_depth_keeps_the_exact_scan_band(sim):
     """With the rendered (dense) depth on, the rows depth_to_scan reads are still the exact ray cast:
     the renderer's depth differs at object edges, which moved amcl off its route."""
-    sim.dense_depth = False
-    cast = sim.depth_image()
-    sim.dense_depth = True
-    try:
-        dense = sim.depth_image()
-    finally:
-        sim.dense_depth = False
+    cast, dense = cast_and_dense_depth(sim)
     band = slice(sim._depth_rows[0], sim._depth_rows[-1] + 1)
     a, b = cast[band], dense[band]
     np.testing.assert_array_equal(np.isfinite(a), np.isfinite(b))
