@@ -68,3 +68,9 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float, zero_policy: str
 def quaternion_from_yaw(yaw: float) -> tuple[float, float, float, float]:
     """(x, y, z, w) of a rotation of ``yaw`` rad about +z."""
     return (0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw))
+
+
+def map_to_odom(map_T_base: Pose2D, odom_T_base: Pose2D) -> Pose2D:
+    """The map->odom transform (m, rad) that makes map->odom->base equal ``map_T_base``:
+    map_T_odom = map_T_base * inverse(odom_T_base) (what every localizer publishes)."""
+    return map_T_base.compose(odom_T_base.inverse())

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from chefbot_common.geometry import Pose2D, wrap_angle
-from chefbot_navigation.fake_localization import map_to_odom
+from chefbot_common.geometry import Pose2D, map_to_odom, wrap_angle
 
 
 def test_map_to_odom_reproduces_ground_truth() -> None:

@@ -25,12 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from chefbot_common.geometry import Pose2D, wrap_angle
+from chefbot_common.geometry import Pose2D, map_to_odom, wrap_angle
 from chefbot_common.grid import OccupancyMap
 from chefbot_navigation.amcl.filter import FilterConfig, ParticleFilter
 from chefbot_navigation.amcl.motion import DiffMotionNoise
 from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
-from chefbot_navigation.fake_localization import map_to_odom
 
 OK, WARN, ERROR = 0, 1, 2   # diagnostic_msgs/DiagnosticStatus levels
 
