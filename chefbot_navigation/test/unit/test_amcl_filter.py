@@ -10,8 +10,10 @@ from amcl_scenes import cast, drifting_odometry, lawnmower, room_map
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.grid import GridInfo, OccupancyMap
+from chefbot_navigation.amcl.filter import FilterConfig, ParticleFilter
 from chefbot_navigation.amcl.localizer import OK, WARN, Amcl, AmclConfig
-from chefbot_navigation.amcl.sensor import MapError
+from chefbot_navigation.amcl.motion import DiffMotionNoise
+from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError
 
 CAMERA = np.linspace(-0.506, 0.506, 160)        # the depth camera's ~58 degree band
 LIDAR = np.linspace(-math.pi, math.pi, 360, endpoint=False)
@@ -114,6 +116,46 @@ def test_kidnapped_robot_is_recovered_with_the_alphas_on() -> None:
     errors = run(amcl, moved, drifting_odometry(moved, seed=6), LIDAR, t0=100.0)
     assert errors[5][0] > 1.0                 # still lost just after the kidnap
     assert errors[-1][0] < 0.25 and errors[-1][1] < 0.25, errors[-1]
+
+
+def test_recent_scans_are_carried_by_odometry_into_the_current_base_frame() -> None:
+    """The recovery pool is scored on earlier scans too: their end points must follow the odometry."""
+    pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=10, inject_scans=2, inject_beams=4),
+                        np.random.default_rng(0))
+    field = LikelihoodField(ROOM, LaserModel())
+    pf.init_gaussian(Pose2D(2.0, 2.0, 0.0), np.diag([0.01, 0.01, 0.01]))
+    world = [(3.0, 2.0), (1.0, 4.5)]          # two fixed points, in the odometry frame
+    a, b, c = Pose2D(1.0, 1.0, 0.3), Pose2D(1.4, 1.2, 1.1), Pose2D(1.5, 1.0, -2.0)
+
+    def seen_from(p: Pose2D) -> np.ndarray:
+        return np.array([[q.x, q.y] for q in (p.inverse().compose(Pose2D(x, y, 0.0)) for x, y in world)],
+                        dtype=np.float32)
+
+    quiet = DiffMotionNoise(0.0, 0.0, 0.0, 0.0)
+    pf.weigh(field, seen_from(a), 8.0)
+    pf.predict(a, b, quiet)
+    np.testing.assert_allclose(pf.recent_endpoints(), seen_from(b), atol=1e-5)
+    pf.weigh(field, seen_from(b)[:1], 8.0)
+    pf.predict(b, c, quiet)
+    pf.weigh(field, seen_from(c)[1:], 8.0)   # a third scan: the first falls out (inject_scans 2)
+    np.testing.assert_allclose(pf.recent_endpoints(), seen_from(c), atol=1e-5)
+    pf.init_gaussian(Pose2D(2.0, 2.0, 0.0), np.diag([0.01, 0.01, 0.01]))
+    assert len(pf.recent_endpoints()) == 0    # a new initial pose forgets them
+
+
+def test_kidnap_through_the_camera_is_recovered_while_turning() -> None:
+    """The narrow camera sees one wall at a time: the pool is scored on the last turn's scans."""
+    start = Pose2D(2.6, 2.9, 0.0)
+    amcl = Amcl(config(initial_pose_x=start.x, initial_pose_y=start.y, initial_pose_a=start.yaw,
+                       initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01, update_min_a=0.05))
+    amcl.set_map(ROOM)
+    before = spin_in_place(start, 5.0)
+    run(amcl, before, drifting_odometry(before, seed=8), CAMERA)
+    moved = spin_in_place(Pose2D(start.x + 2.5, start.y - 0.8, before[-1].yaw), 30.0)
+    errors = run(amcl, moved, drifting_odometry(moved, seed=9), CAMERA, t0=100.0)
+    assert errors[3][0] > 1.0                 # lost just after the kidnap
+    ok = [e[0] < 0.25 and e[1] < 0.25 for e in errors]
+    assert all(ok[-50:]), errors[-50:]        # localized for the last 5 s
 
 
 def test_without_recovery_the_kidnap_is_reported_not_hidden() -> None:

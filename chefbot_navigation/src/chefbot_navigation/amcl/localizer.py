@@ -79,6 +79,9 @@ class AmclConfig:
     seed: int = 0                       # ours: random generator seed (same inputs, same run)
     global_samples: int = 50000         # ours: poses scored at the first update after global localization
     recovery_pool: int = 25             # ours: scored candidates per injected particle (1 = amcl's blind draw)
+    recovery_scans: int = 20            # ours: recent scans (odometry-aligned) the candidates are scored on
+    recovery_beams: int = 180           # ours: at most this many of those scans' beams
+    recovery_refine: int = 4            # ours: jittered copies per chosen candidate, scored again (0: none)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
@@ -112,7 +115,8 @@ class AmclConfig:
     def filter_config(self) -> FilterConfig:
         """The particle filter's settings (particle counts, KLD, recovery)."""
         return FilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
-                            self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool)
+                            self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool,
+                            self.recovery_scans, self.recovery_beams, self.recovery_refine)
 
     def motion_noise(self) -> DiffMotionNoise:
         """The odometry motion model's noise (odom_alpha1..4)."""
