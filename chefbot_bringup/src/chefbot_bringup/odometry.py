@@ -64,9 +64,10 @@ class OdometryConfig:
     min_pose_var: float = 1e-6        # floor on x/y/yaw variance (m^2, rad^2)
     twist_linear_var: float = 1e-3    # variance of the reported linear speed ((m/s)^2)
     twist_angular_var: float = 1e-2   # variance of the reported yaw rate ((rad/s)^2)
+    imu_timeout: float = 0.25         # s: an IMU yaw older than this is stale, the wheels give the heading
 
     def __post_init__(self) -> None:
-        for name in ("ticks_meter", "base_width", "max_wheel_speed"):
+        for name in ("ticks_meter", "base_width", "max_wheel_speed", "imu_timeout"):
             if not (getattr(self, name) > 0 and math.isfinite(getattr(self, name))):
                 raise ValueError(f"{name} must be a positive finite number, got {getattr(self, name)!r}")
         for name in ("wheel_slip_var", "min_pose_var", "twist_linear_var", "twist_angular_var"):
@@ -108,7 +109,9 @@ class DiffOdometry:
         self._base_r: int | None = None
         self._t_last: float | None = None
         self._yaw_imu: float | None = None
+        self._yaw_imu_t: float | None = None       # when the latest IMU yaw arrived (s)
         self._yaw_imu_base: float | None = None
+        self.imu_used = False                      # the last step's heading came from the IMU
         self.x = self.y = self.theta = 0.0
         self.v = self.w = 0.0
         self.resets = 0
@@ -121,13 +124,20 @@ class DiffOdometry:
         if right is not None:
             self._pos_r = self._right.update(right)
 
-    def set_imu_yaw(self, yaw: float) -> None:
-        """Record the latest IMU yaw (rad); when set, heading changes come from it."""
+    def set_imu_yaw(self, yaw: float, t: float | None = None) -> None:
+        """Record the latest IMU yaw (rad) received at ``t`` (s); while it is fresh (younger than
+        ``imu_timeout`` at each update), heading changes come from it, else from the wheels.
+        ``t`` None: always fresh (a caller that checks the age itself)."""
         self._yaw_imu = yaw
+        self._yaw_imu_t = t
 
-    def _rebaseline(self) -> None:
+    def _imu_fresh(self, t: float) -> bool:
+        return self._yaw_imu is not None and (self._yaw_imu_t is None or
+                                              t - self._yaw_imu_t <= self.cfg.imu_timeout)
+
+    def _rebaseline(self, t: float) -> None:
         self._base_l, self._base_r = self._pos_l, self._pos_r
-        self._yaw_imu_base = self._yaw_imu
+        self._yaw_imu_base = self._yaw_imu if self._imu_fresh(t) else None
 
     def update(self, t: float) -> OdometryState | None:
         """Integrate the travel since the last call; ``t`` in seconds.
@@ -137,13 +147,13 @@ class DiffOdometry:
         if self._pos_l is None or self._pos_r is None:
             return None
         if self._base_l is None or self._t_last is None:
-            self._rebaseline()
+            self._rebaseline(t)
             self._t_last = t
             return self.state(t)
         dt = t - self._t_last
         if dt <= 0.0:
             # Time went backwards (sim time reset) or a duplicate call: re-baseline.
-            self._rebaseline()
+            self._rebaseline(t)
             self._t_last = t
             return self.state(t)
         cfg = self.cfg
@@ -155,13 +165,16 @@ class DiffOdometry:
         limit = 1.5 * cfg.max_wheel_speed * dt + 0.02
         if abs(dl) > limit or abs(dr) > limit:
             self.resets += 1
-            self._rebaseline()
+            self._rebaseline(t)
             self._t_last = t
             self.v = self.w = 0.0
             return self.state(t)
 
         d = 0.5 * (dl + dr)
-        if self._yaw_imu is not None and self._yaw_imu_base is not None:
+        # an IMU that fell silent (or just came back) gives no heading change for this step: the
+        # wheels do, and the next step starts from the IMU's current yaw
+        self.imu_used = self._imu_fresh(t) and self._yaw_imu_base is not None
+        if self.imu_used:
             dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base)
             # Split the IMU heading change into wheel travels so the arc
             # formula stays the single source of truth.
@@ -176,7 +189,7 @@ class DiffOdometry:
         self.theta = wrap_angle(th)
         self.v = d / dt
         self.w = dtheta / dt
-        self._rebaseline()
+        self._rebaseline(t)
         self._t_last = t
         return self.state(t)
 
