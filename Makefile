@@ -20,9 +20,10 @@ setup:
 test: setup
 	@$(WITH_ENV) python tools/run_tests.py
 
-# make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] (or CHEFBOT_DEMO_* variables)
+# make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] [DRIVE=firmware|plugin]
+# (or CHEFBOT_DEMO_* variables)
 demo: setup
-	@$(if $(WORLD),CHEFBOT_DEMO_WORLD='$(WORLD)') $(if $(MAP),CHEFBOT_DEMO_MAP='$(MAP)') \
+	@$(if $(WORLD),CHEFBOT_DEMO_WORLD='$(WORLD)') $(if $(MAP),CHEFBOT_DEMO_MAP='$(MAP)') $(if $(DRIVE),CHEFBOT_DEMO_DRIVE='$(DRIVE)') \
 	  $(if $(TABLES_FILE),CHEFBOT_DEMO_TABLES_FILE='$(TABLES_FILE)') $(WITH_ENV) python tools/demo.py
 
 bench: setup

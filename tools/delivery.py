@@ -4,9 +4,11 @@ Used by `make demo` (tools/demo.py) and the delivery benchmark: a real
 ``actionlib.SimpleActionClient('move_base', MoveBaseAction)`` sends each table
 pose of the shared tables YAML in turn, and every leg is measured against the
 simulator's ground truth (``ground_truth/odom``): planned path length
-(``move_base/make_plan``), duration in sim time, final position/heading error,
-bumper contacts.  Needs a running simulation + navigation on the current
-ROS master (``navigation_demo.launch``).
+(``move_base/make_plan``) and the time-optimal limit along it
+(chefbot_navigation.time_limit.profile_limit: speed, acceleration and turn
+limits), duration in sim time, final position/heading error, bumper contacts.
+Needs a running simulation + navigation on the current ROS master
+(``navigation_demo.launch``).
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import time
 from dataclasses import asdict, dataclass
 
 import actionlib
+import numpy as np
 import rospy
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
@@ -25,8 +28,12 @@ from nav_msgs.srv import GetPlan
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
 MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
+# the robot's limits as move_base's controller has them (param/move_base.yaml: max_vel_x,
+# max_vel_theta, acc_lim_x, acc_lim_theta)
+LIMITS = MotionLimits(v_max=MAX_SPEED, w_max=2.5, acc=0.8, dec=0.8, alpha=3.0)
 
 
 @dataclass
@@ -37,13 +44,13 @@ class Leg:
     text: str
     planned_m: float       # length of the global plan from the start pose (m)
     seconds: float         # sim time from goal to result (s)
-    limit_s: float         # physical limit: planned length / top speed (s)
+    limit_s: float         # time-optimal limit along the plan: speed/acceleration profile + turns (s)
     xy_error: float        # final ground-truth distance to the goal pose (m)
     yaw_error: float       # final ground-truth heading error (rad)
     bumps: int             # bumper contacts during the leg
 
     def line(self) -> str:
-        if not self.ok:
+        if self.state != "SUCCEEDED":
             return f"{self.name}: FAILED ({self.state}: {self.text})"
         ratio = self.seconds / self.limit_s if self.limit_s > 0 else float("nan")
         return (f"{self.name}: {self.planned_m:.2f} m planned, {self.seconds:.1f} s "
@@ -93,7 +100,8 @@ class DeliveryClient:
         rospy.wait_for_service("move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
         self.make_plan = rospy.ServiceProxy("move_base/make_plan", GetPlan)
 
-    def planned_length(self, x: float, y: float, yaw: float) -> float:
+    def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
+        """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
         with self._lock:
             truth = self.truth
         start = PoseStamped()
@@ -103,16 +111,19 @@ class DeliveryClient:
         goal.header.frame_id = "map"
         goal.pose.position.x, goal.pose.position.y = x, y
         goal.pose.orientation = Quaternion(*quaternion_from_yaw(yaw))
+        q = truth.pose.pose.orientation
+        start_yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
         try:
             plan = self.make_plan(start=start, goal=goal, tolerance=0.0).plan.poses
         except rospy.ServiceException:
-            return float("nan")
-        pts = [(p.pose.position.x, p.pose.position.y) for p in plan]
-        return sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False))
+            return np.zeros((0, 2)), start_yaw
+        return np.array([(p.pose.position.x, p.pose.position.y) for p in plan]).reshape(-1, 2), start_yaw
 
     def deliver(self, name: str, x: float, y: float, yaw: float, timeout_wall: float) -> Leg:
         """Drive to one pose; measure against ground truth."""
-        planned = self.planned_length(x, y, yaw)
+        pts, start_yaw = self.planned_path(x, y, yaw)
+        planned = float(np.sum(np.hypot(*np.diff(pts, axis=0).T))) if len(pts) > 1 else float("nan")
+        limit = profile_limit(pts, LIMITS, start_yaw, yaw) if len(pts) > 1 else float("nan")
         goal = MoveBaseGoal()
         goal.target_pose.header.frame_id = "map"
         goal.target_pose.header.stamp = rospy.Time.now()
@@ -142,4 +153,4 @@ class DeliveryClient:
         xy = math.hypot(p.position.x - x, p.position.y - y)
         dyaw = abs(math.remainder(yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw")) - yaw, 2 * math.pi))
         return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
-                   seconds=seconds, limit_s=planned / MAX_SPEED, xy_error=xy, yaw_error=dyaw, bumps=bumps)
+                   seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps)
