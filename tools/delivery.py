@@ -28,6 +28,7 @@ from nav_msgs.srv import GetPlan
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+from chefbot_navigation.ros_util import wait_for_action_server
 from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
 MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
@@ -90,13 +91,8 @@ class DeliveryClient:
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise TimeoutError("no ground_truth/odom from the simulator")
             time.sleep(0.05)
-        # Not actionlib's wait_for_server: its timeout counts ROS time, which stands still until
-        # (and whenever) the simulation's /clock does, so it could block past any deadline.
-        ac = self.client.action_client
-        while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0:
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                raise TimeoutError("move_base action server not up")
-            time.sleep(0.05)
+        if not wait_for_action_server(self.client, max(0.0, deadline - time.monotonic())):   # wall clock
+            raise TimeoutError("move_base action server not up")
         rospy.wait_for_service("move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
         self.make_plan = rospy.ServiceProxy("move_base/make_plan", GetPlan)
 

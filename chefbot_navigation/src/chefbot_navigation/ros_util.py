@@ -1,9 +1,10 @@
 """ROS glue shared by the navigation nodes (imports rospy/tf2): timers that survive time jumping
 back and exceptions (:func:`periodic`), a ``diagnostics`` publisher (:class:`Diagnostics`), planar
-tf lookups (:class:`PlanarTf`)."""
+tf lookups (:class:`PlanarTf`), a wall-clock wait for an action server (:func:`wait_for_action_server`)."""
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -92,6 +93,19 @@ class Diagnostics:
                                                hardware_id=rospy.get_name(),
                                                values=[KeyValue(str(k), str(v)) for k, v in values.items()]))
         self.pub.publish(msg)
+
+
+def wait_for_action_server(client, timeout_s: float) -> bool:
+    """Wait up to ``timeout_s`` seconds of WALL time until ``client`` (a SimpleActionClient) sees its
+    server: a status message arrived and the server subscribes to our goals.  False on timeout or
+    shutdown.  Not actionlib's ``wait_for_server``: its timeout counts ROS time, which under a fast
+    simulation runs out before the client has connected, and never with a stalled /clock."""
+    ac, deadline = client.action_client, time.monotonic() + timeout_s
+    while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0:
+        if time.monotonic() > deadline or rospy.is_shutdown():
+            return False
+        time.sleep(0.05)
+    return True
 
 
 def revive_action_status_timer(server, who: str) -> None:
