@@ -136,10 +136,15 @@ class _TimeoutTransport(xmlrpc.client.Transport):
         return conn
 
 
+def master_proxy(uri: str, timeout_s: float) -> xmlrpc.client.ServerProxy:
+    """An XML-RPC proxy of the ROS master at ``uri`` whose calls give up after ``timeout_s`` seconds."""
+    return xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout_s))
+
+
 def master_reachable(uri: str, timeout_s: float = 0.5) -> bool:
     """Does a ROS master answer ``getPid`` at ``uri`` within ``timeout_s`` seconds?"""
     try:
-        code, _msg, _pid = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout_s)).getPid("/robot_gui")
+        code, _msg, _pid = master_proxy(uri, timeout_s).getPid("/robot_gui")
     except (OSError, xmlrpc.client.Error, ValueError, TypeError):
         return False
     return code == 1

@@ -14,6 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from chefbot_gui.topic_stats import Stats
+
+IMAGE_TYPE = "sensor_msgs/Image"
+
 # encoding → (channels, numpy dtype, channel order for RGB display or None for one channel)
 _FORMATS: dict[str, tuple[int, str, tuple[int, ...] | None]] = {
     "rgb8": (3, "u1", (0, 1, 2)),
@@ -42,6 +46,18 @@ class DisplayImage:
 
     rgb: np.ndarray
     note: str
+
+
+@dataclass(frozen=True)
+class ImageFrame:
+    """The image view's latest state: ``serial`` grows with every frame or topic change;
+    ``image`` to show, or ``error`` saying why not; ``stats``: the topic's traffic."""
+
+    serial: int = 0
+    topic: str = ""
+    image: DisplayImage | None = None
+    error: str = ""
+    stats: Stats = Stats()
 
 
 def to_display(encoding: str, width: int, height: int, step: int, data: bytes,

@@ -18,6 +18,10 @@ MAX_BYTES = 16       # bytes of a uint8[] shown in hex
 MAX_DEPTH = 12       # nested message levels
 
 
+class DecodeError(RuntimeError):
+    """A topic's last message cannot be shown as fields (type not installed, bad bytes); says why."""
+
+
 @dataclass(frozen=True)
 class TreeNode:
     """One row: field ``name``, ROS ``type``, ``value`` text ('' for a nested message) and children."""
