@@ -57,7 +57,7 @@ class MonitorController(QObject):
 
     def _attach(self) -> None:
         if self._make_bridge is None:
-            from chefbot_gui.monitor_bridge import MonitorBridge  # rospy: only once ROS is up
+            from chefbot_gui.ros_monitor import MonitorBridge  # rospy: only once ROS is up
             self._make_bridge = MonitorBridge
         self.bridge = self._make_bridge()
         self.bridge.start()

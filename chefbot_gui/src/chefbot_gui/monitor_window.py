@@ -59,16 +59,31 @@ _SEVERITY_COLOURS = {WARN: "#fff3c4", ERROR: "#ffcdd2", FATAL: "#ef9a9a"}
 
 
 class MonitorPort(Protocol):
-    """What the window needs from ROS (implemented by ``monitor_bridge.MonitorBridge``)."""
+    """What the window needs from ROS (implemented by ``ros_monitor.MonitorBridge``)."""
 
-    def drain_logs(self, limit: int = ...) -> list[LogEntry]: ...
-    def topics(self) -> tuple[int, list[tuple[str, str]] | None, str]: ...
-    def subscribe(self, name: str) -> None: ...
-    def unsubscribe(self, name: str) -> None: ...
-    def stats(self, name: str) -> Stats: ...
-    def last_message(self, name: str, listed_type: str) -> tuple[int, object | None]: ...
-    def set_image_topic(self, name: str | None) -> None: ...
-    def latest_image(self) -> ImageFrame: ...
+    def drain_logs(self, limit: int = ...) -> list[LogEntry]:
+        """Log entries received since the last call, oldest first."""
+
+    def topics(self) -> tuple[int, list[tuple[str, str]] | None, str]:
+        """(serial, the master's ``(name, type)`` list or None, error text or '')."""
+
+    def subscribe(self, name: str) -> None:
+        """Start measuring ``name``."""
+
+    def unsubscribe(self, name: str) -> None:
+        """Stop measuring ``name``."""
+
+    def stats(self, name: str) -> Stats:
+        """Rate and bandwidth of ``name`` now."""
+
+    def last_message(self, name: str, listed_type: str) -> tuple[int, object | None]:
+        """(serial, last decoded message or None); raises ``DecodeError`` saying why not."""
+
+    def set_image_topic(self, name: str | None) -> None:
+        """Show ``name`` in the image view (None: nothing)."""
+
+    def latest_image(self) -> ImageFrame:
+        """The image view's latest frame or error."""
 
 
 # ---------------------------------------------------------------------- Console
@@ -82,17 +97,21 @@ class LogTableModel(QAbstractTableModel):
         self._rows: list[LogEntry] = []
 
     def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt's signature
+        """Rows shown (Qt model API)."""
         return 0 if parent.isValid() else len(self._rows)
 
     def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008 - Qt's signature
+        """Time, Severity, Node, Message, Location (Qt model API)."""
         return 0 if parent.isValid() else len(self.COLUMNS)
 
     def headerData(self, section: int, orientation: Qt.Orientation, role: int = Qt.DisplayRole) -> Any:
+        """Column titles (Qt model API)."""
         if role == Qt.DisplayRole and orientation == Qt.Horizontal:
             return self.COLUMNS[section]
         return None
 
     def data(self, index: QModelIndex, role: int = Qt.DisplayRole) -> Any:
+        """Cell text, tooltip and severity colour (Qt model API)."""
         if not index.isValid():
             return None
         e = self._rows[index.row()]
@@ -160,7 +179,7 @@ class ConsoleWidget(QWidget):
         self.logTable.verticalHeader().setVisible(False)
         self.logTable.verticalHeader().setDefaultSectionSize(20)
         header = self.logTable.horizontalHeader()
-        for col, width in enumerate((95, 60, 150, 0, 200)):
+        for col, width in enumerate((110, 70, 180, 0, 260)):
             if width:
                 self.logTable.setColumnWidth(col, width)
         header.setSectionResizeMode(3, QHeaderView.Stretch)
@@ -242,13 +261,14 @@ class TopicMonitorWidget(QWidget):
         self.topicTree = QTreeWidget(self, objectName="topicTree")
         self.topicTree.setHeaderLabels(["Topic", "Type", "Rate", "Bandwidth", "Value"])
         self.topicTree.setUniformRowHeights(True)
-        for col, width in ((COL_TOPIC, 230), (COL_TYPE, 190), (COL_RATE, 80), (COL_BW, 85)):
+        for col, width in ((COL_TOPIC, 300), (COL_TYPE, 210), (COL_RATE, 85), (COL_BW, 95)):
             self.topicTree.setColumnWidth(col, width)
         self.topicTree.itemChanged.connect(self._item_changed)
         self.topicStatus = QLabel("no ROS master yet", self, objectName="topicStatus")
         self.topicStatus.setWordWrap(True)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(2, 2, 2, 2)
+        lay.addWidget(QLabel("<b>Topic Monitor</b> — tick a topic to measure it and see its last message", self))
         lay.addWidget(self.topicTree)
         lay.addWidget(self.topicStatus)
 
@@ -313,18 +333,13 @@ class TopicMonitorWidget(QWidget):
             self._updating = False
 
     def _refresh_value(self, name: str, typ: str, published: bool, st: Stats, item: QTreeWidgetItem) -> None:
+        gone = "" if published else "no longer published (kept while ticked; untick to drop)"
+        msg = None
         try:
             serial, msg = self.port.last_message(name, typ)
+            status = gone or ("no message yet" if msg is None else f"{st.total} received")
         except DecodeError as e:
-            _set_text(item, COL_VALUE, str(e))
-            item.setToolTip(COL_VALUE, str(e))
-            return
-        if not published:
-            status = "no longer published (kept while ticked; untick to drop)"
-        elif msg is None:
-            status = "no message yet"
-        else:
-            status = f"{st.total} received" if st.total else ""
+            status = f"{gone}; {e}" if gone else str(e)
         _set_text(item, COL_VALUE, status)
         item.setToolTip(COL_VALUE, status)
         if msg is not None and self._serials.get(name) != serial:
@@ -419,7 +434,7 @@ class ImageViewWidget(QWidget):
         if self.port is None:
             return
         f = self.port.latest_image()
-        rate = f" — {fmt_rate(f.stats)}" if f.stats.total else ""
+        rate = f" — {fmt_rate(f.stats)}" if f.stats.rate_hz is not None else ""
         if f.serial != self._serial:
             self._serial = f.serial
             if f.image is not None:
@@ -439,6 +454,7 @@ class ImageViewWidget(QWidget):
                                                           Qt.SmoothTransformation))
 
     def resizeEvent(self, event: Any) -> None:
+        """Rescale the image to the new size."""
         super().resizeEvent(event)
         self._rescale()
 
@@ -499,11 +515,12 @@ class RobotMonitorWindow(QMainWindow):
         self.image_view.refresh()
         self._ticks += 1
         serial, listing, error = self.port.topics()
-        if serial != self._listing_serial:
+        listed = serial != self._listing_serial
+        if listed:
             self._listing_serial = serial
             self.topic_monitor.update_listing(listing, error)
             self.image_view.update_topics(self.topic_monitor.topics.of_type(IMAGE_TYPE))
-        if self._ticks % TOPIC_EVERY_TICKS == 0:
+        if listed or self._ticks % TOPIC_EVERY_TICKS == 0:
             self.topic_monitor.refresh_values()
 
     def stop(self) -> None:
@@ -511,6 +528,7 @@ class RobotMonitorWindow(QMainWindow):
         self._timer.stop()
 
     def closeEvent(self, event: Any) -> None:
+        """Stop pulling and tell the owner (``closed``)."""
         self.stop()
         self.closed.emit()
         super().closeEvent(event)

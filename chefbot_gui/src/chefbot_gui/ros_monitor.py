@@ -144,6 +144,10 @@ class MonitorBridge:
             self._log_overflow += 1
         self._logs.append(log_entry(msg))
 
+    def log_connections(self) -> int:
+        """Publishers of the log topic connected to us (rosout: 1 once the link is up)."""
+        return self._rosout.get_num_connections() if self._rosout is not None else 0
+
     def drain_logs(self, limit: int = 5000) -> list[LogEntry]:
         """The log entries received since the last call (at most ``limit``; the rest wait)."""
         out = []
