@@ -261,7 +261,7 @@ class TopicMonitorWidget(QWidget):
         self.topicTree = QTreeWidget(self, objectName="topicTree")
         self.topicTree.setHeaderLabels(["Topic", "Type", "Rate", "Bandwidth", "Value"])
         self.topicTree.setUniformRowHeights(True)
-        for col, width in ((COL_TOPIC, 300), (COL_TYPE, 210), (COL_RATE, 85), (COL_BW, 95)):
+        for col, width in ((COL_TOPIC, 230), (COL_TYPE, 175), (COL_RATE, 75), (COL_BW, 85)):
             self.topicTree.setColumnWidth(col, width)
         self.topicTree.itemChanged.connect(self._item_changed)
         self.topicStatus = QLabel("no ROS master yet", self, objectName="topicStatus")
@@ -472,7 +472,7 @@ class RobotMonitorWindow(QMainWindow):
     def __init__(self, capacity: int = DEFAULT_CAPACITY, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("ChefBot — robot monitor")
-        self.resize(1200, 800)
+        self.resize(1280, 800)
         self.port: MonitorPort | None = None
         self._listing_serial = -1
         self._ticks = 0
@@ -486,8 +486,8 @@ class RobotMonitorWindow(QMainWindow):
             dock.setWidget(widget)
             dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable)
             self.addDockWidget(area, dock)
-        self.resizeDocks([self.findChild(QDockWidget, "imageDock")], [420], Qt.Horizontal)
-        self.resizeDocks([self.findChild(QDockWidget, "consoleDock")], [300], Qt.Vertical)
+        self.resizeDocks([self.findChild(QDockWidget, "imageDock")], [400], Qt.Horizontal)
+        self.resizeDocks([self.findChild(QDockWidget, "consoleDock")], [260], Qt.Vertical)
         self.statusBar().showMessage("waiting for a ROS master…")
         self._timer = QTimer(self)
         self._timer.timeout.connect(self.refresh)

@@ -97,6 +97,14 @@ def console_rows(window) -> list[tuple[str, ...]]:
     return [tuple(m.index(r, c).data() for c in range(m.columnCount())) for r in range(m.rowCount())]
 
 
+def subscribers_of(topic: str) -> list[str]:
+    """The nodes the master lists as subscribers of ``topic``."""
+    import rosgraph
+
+    _pubs, subs, _srvs = rosgraph.Master("/monitor_test_probe").getSystemState()
+    return next((nodes for name, nodes in subs if name == topic), [])
+
+
 def log_until_shown(qtbot, window, log: Callable[[], None], token: str) -> None:
     """Log, and log again every 2 s, until the Console shows ``token``: a line logged while a
     freshly made TCP link (this node → rosout → us) is still connecting is lost, as in ROS."""
@@ -149,6 +157,7 @@ def test_console_topic_monitor_and_image_view_against_a_real_master(qtbot, monit
     assert item.text(1) == "sensor_msgs/BatteryState"
     w.topic_monitor.set_ticked(topic, True)
     assert topic in w.port.subscribed()
+    qtbot.waitUntil(lambda: rospy.get_name() in subscribers_of(topic), timeout=T)
     qtbot.waitUntil(lambda: w.port.stats(topic).count >= 20, timeout=T)
     qtbot.waitUntil(lambda: rate_hz(item) is not None and child(item, "percentage") is not None, timeout=T)
     assert 5.0 < rate_hz(item) < 40.0, item.text(2)  # nominal 20 Hz; wide: loaded machine
@@ -181,6 +190,7 @@ def test_console_topic_monitor_and_image_view_against_a_real_master(qtbot, monit
     # unticking unsubscribes and clears the row
     w.topic_monitor.set_ticked(topic, False)
     assert topic not in w.port.subscribed()
+    qtbot.waitUntil(lambda: rospy.get_name() not in subscribers_of(topic), timeout=T)  # the master agrees
     assert item.childCount() == 0 and item.text(2) == ""
 
 
