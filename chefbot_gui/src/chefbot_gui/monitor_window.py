@@ -261,7 +261,7 @@ class TopicMonitorWidget(QWidget):
         self.topicTree = QTreeWidget(self, objectName="topicTree")
         self.topicTree.setHeaderLabels(["Topic", "Type", "Rate", "Bandwidth", "Value"])
         self.topicTree.setUniformRowHeights(True)
-        for col, width in ((COL_TOPIC, 230), (COL_TYPE, 175), (COL_RATE, 75), (COL_BW, 85)):
+        for col, width in ((COL_TOPIC, 230), (COL_TYPE, 175), (COL_RATE, 75), (COL_BW, 95)):
             self.topicTree.setColumnWidth(col, width)
         self.topicTree.itemChanged.connect(self._item_changed)
         self.topicStatus = QLabel("no ROS master yet", self, objectName="topicStatus")

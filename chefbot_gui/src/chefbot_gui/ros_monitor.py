@@ -266,11 +266,14 @@ class MonitorBridge:
         raw, decoded = _raw_and_message(msg)
         image, error = None, ""
         try:
+            sent_type = (getattr(msg, "_connection_header", None) or {}).get("type", IMAGE_TYPE)
+            if decoded is None and sent_type != IMAGE_TYPE:
+                raise ImageError(f"carries {sent_type}, not {IMAGE_TYPE}")
             if decoded is None:
                 decoded = Image()
                 decoded.deserialize(raw)
             if getattr(decoded, "_type", "") != IMAGE_TYPE:
-                raise ImageError(f"{name} carries {getattr(decoded, '_type', '?')}, not {IMAGE_TYPE}")
+                raise ImageError(f"carries {getattr(decoded, '_type', '?')}, not {IMAGE_TYPE}")
             m = decoded
             image = to_display(m.encoding, m.width, m.height, m.step, bytes(m.data), bool(m.is_bigendian))
         except ImageError as e:

@@ -232,6 +232,12 @@ def test_bad_inputs_give_a_status_text_not_a_crash(qtbot, monitor, repeaters) ->
     mode["img"] = rgb_image(8, 6)
     qtbot.waitUntil(lambda: "8×6 rgb8" in status.text(), timeout=T)
     assert w.image_view.image.width() == 8
+
+    # a topic that is not an image, picked by name (as --image-topic can)
+    words = f"{ns()}/not_an_image"
+    repeaters(words, String, lambda: String(data="hello"), 0.1)
+    w.image_view.choose(words)
+    qtbot.waitUntil(lambda: "carries std_msgs/String, not sensor_msgs/Image" in status.text(), timeout=T)
     rospy.loginfo("monitor bad-input test done")  # the node is still alive and logging
 
 
