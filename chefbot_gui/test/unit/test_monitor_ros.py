@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 from conftest import PKG
+from PyQt5.QtCore import Qt
 from PyQt5.QtGui import QColor
 
 from chefbot_gui.app import save_screenshot
@@ -255,3 +256,41 @@ def test_node_script_screenshot_and_bad_param(ros_master, tmp_path) -> None:
                          env=env, capture_output=True, text=True, timeout=60, start_new_session=True)
     assert bad.returncode == 2
     assert "~window_s" in bad.stdout + bad.stderr
+
+
+def test_delivery_gui_button_opens_the_monitor_sharing_its_subscriptions(qtbot, make_gui, repeaters) -> None:
+    """The delivery window's *Robot monitor…* button, wired as nodes/robot_gui wires it: the monitor
+    ticks a topic the delivery GUI already subscribes with its real type (rospy shares one
+    subscription per topic and process), and both keep working."""
+    from sensor_msgs.msg import BatteryState
+
+    from chefbot_gui.monitor_app import MonitorController
+    from chefbot_gui.ros_monitor import MonitorBridge, MonitorParams
+
+    gui = make_gui()
+    ctl = MonitorController(lambda: MonitorBridge(MonitorParams(list_period_s=0.3)))
+    gui.window.monitorRequested.connect(ctl.open)
+    ctl.ros_ready()
+    try:
+        qtbot.mouseClick(gui.window.monitorButton, Qt.LeftButton)
+        assert ctl.window is not None and ctl.window.isVisible() and ctl.window.port is ctl.bridge
+        topic = f"{gui.ns}/battery_state"
+        repeaters(topic, BatteryState, lambda: BatteryState(percentage=0.37, voltage=12.0, present=True), 0.1)
+        wait_topic(qtbot, ctl.window, topic)
+        ctl.window.topic_monitor.set_ticked(topic, True)
+        item = ctl.window.topic_monitor.item(topic)
+        qtbot.waitUntil(lambda: child(item, "percentage") is not None, timeout=T)
+        assert child(item, "percentage").text(4) == "0.37"
+        qtbot.waitUntil(lambda: re.match(r"[\d.]+ B/s", item.text(3)) is not None, timeout=T)  # bytes counted
+        qtbot.waitUntil(lambda: gui.window.batteryBar.value() == 37, timeout=T)  # the GUI's own subscriber
+        ctl.window.close()  # closing drops the monitor's subscriptions, not the GUI's
+        assert ctl.bridge is None
+        qtbot.waitUntil(lambda: rospy_name() in subscribers_of(topic), timeout=T)
+    finally:
+        ctl.shutdown()
+
+
+def rospy_name() -> str:
+    import rospy
+
+    return rospy.get_name()
