@@ -96,9 +96,10 @@ def main() -> int:
         f"log: {log.relative_to(ROOT)}")
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
     launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "navigation_demo.launch", f"real_time_factor:={rtf}"]
-    from chefbot_common.tables import TablesError, load_tables
+    from chefbot_common.tables import TablesError, load_map_in_world, load_tables
     try:
         tables = load_tables(tables_file)
+        map_in_world = load_map_in_world(tables_file)
     except TablesError as exc:
         say(f"ERROR: {exc}")
         return 2
@@ -107,8 +108,11 @@ def main() -> int:
     if site["map"]:
         launch_cmd.append(f"map_file:={Path(site['map']).resolve()}")
     if "home" in tables:
+        # the sim spawns the robot in the world frame, amcl starts in the map frame
         home = tables["home"]
-        launch_cmd += [f"x:={home.x}", f"y:={home.y}", f"yaw:={home.yaw}"]
+        spawn = map_in_world.compose(home)
+        launch_cmd += [f"x:={spawn.x}", f"y:={spawn.y}", f"yaw:={spawn.yaw}", f"initial_pose_x:={home.x}",
+                       f"initial_pose_y:={home.y}", f"initial_pose_a:={home.yaw}"]
     with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
             ProcessGroup(launch_cmd, env=env, log=log) as launch:
         import rosgraph
@@ -140,7 +144,7 @@ def main() -> int:
                 return 1
             time.sleep(0.1)
         rospy.init_node("chefbot_demo", anonymous=True, disable_signals=True)
-        client = DeliveryClient()
+        client = DeliveryClient(map_in_world)
         say("waiting for the simulator and move_base ...")
         try:
             client.wait_ready(max(1.0, deadline - time.monotonic()))

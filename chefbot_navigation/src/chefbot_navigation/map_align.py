@@ -62,17 +62,18 @@ class Alignment:
     inlier_fraction: float
     points: int
 
+    @property
+    def pose(self) -> Pose2D:
+        """The transform as a Pose2D (target frame in the source frame)."""
+        return Pose2D(self.x, self.y, self.yaw)
+
     def to_source(self, pose: Pose2D) -> Pose2D:
         """A pose given in the target frame, expressed in the source frame."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return Pose2D(self.x + c * pose.x - s * pose.y, self.y + s * pose.x + c * pose.y,
-                      math.remainder(pose.yaw + self.yaw, math.tau))
+        return self.pose.compose(pose)
 
     def to_target(self, pose: Pose2D) -> Pose2D:
         """A pose given in the source frame, expressed in the target frame (inverse of :meth:`to_source`)."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        dx, dy = pose.x - self.x, pose.y - self.y
-        return Pose2D(c * dx + s * dy, -s * dx + c * dy, math.remainder(pose.yaw - self.yaw, math.tau))
+        return self.pose.inverse().compose(pose)
 
 
 def occupied_points(occ: OccupancyMap, name: str = "map") -> np.ndarray:
