@@ -84,3 +84,35 @@ def test_bad_inputs_name_the_problem(world):
         align_maps(world, world, yaw_step=float("nan"))
     with pytest.raises(AlignError, match="nothing to align on"):
         local_alignment(world, world, align_maps(world, world), Pose2D(50.0, 50.0, 0.0), radius=1.0)
+
+
+NODE = __import__("pathlib").Path(__file__).resolve().parents[2] / "nodes" / "align_tables"
+
+
+def test_cli_writes_tables_in_the_target_frame(world, tmp_path):
+    import subprocess
+    import sys
+
+    from chefbot_common.map_io import save_map
+    from chefbot_common.tables import load_map_in_world, load_tables
+    truth = Pose2D(0.3, -0.2, math.radians(6.0))
+    save_map(world, tmp_path / "world")
+    save_map(raster(truth, (-4.0, -4.0), (300, 300), surface_only=True), tmp_path / "slam")
+    src = tmp_path / "tables.yaml"
+    src.write_text("frame: map\nworld: synth\nposes:\n  home: {x: 0, y: 0}\n  table_1: {x: 6.0, y: 0.9, yaw: 0.0}\n")
+    out = tmp_path / "tables_slam.yaml"
+    run = subprocess.run([sys.executable, str(NODE), str(src), str(tmp_path / "world.yaml"),
+                          str(tmp_path / "slam.yaml"), "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    text = out.read_text()
+    assert "align_tables tables.yaml world.yaml slam.yaml -o tables_slam.yaml" in text and "RMS" in text
+    tables, m_in_w = load_tables(out), load_map_in_world(out)
+    assert math.hypot(m_in_w.x - truth.x, m_in_w.y - truth.y) <= RES
+    assert abs(m_in_w.yaw - truth.yaw) <= math.radians(0.5)
+    exact = truth.inverse().compose(Pose2D(6.0, 0.9, 0.0))
+    assert math.hypot(tables["table_1"].x - exact.x, tables["table_1"].y - exact.y) <= 2 * RES
+    # bad input: a clear message naming the file, exit 2, nothing written
+    bad = subprocess.run([sys.executable, str(NODE), str(src), str(tmp_path / "absent.yaml"),
+                          str(tmp_path / "slam.yaml"), "-o", str(tmp_path / "x.yaml")],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "absent.yaml" in bad.stderr and not (tmp_path / "x.yaml").exists()
