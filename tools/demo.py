@@ -17,7 +17,11 @@ the machine goes), CHEFBOT_DEMO_TABLES (comma-separated subset, e.g. table_1,tab
 CHEFBOT_DEMO_WORLD (world file, our YAML or an SDF), CHEFBOT_DEMO_MAP (map_server YAML of
 that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``home``) --
 `make demo WORLD=... MAP=... TABLES_FILE=...` sets them.  Every name starting with
-``table`` in the tables file is a delivery target.
+``table`` in the tables file is a delivery target.  A tables file of a map whose frame is
+not the world's (a SLAM map, e.g. hotel_tables_slam.yaml by ``align_tables``) carries
+``map_in_world``: the robot is spawned at that pose composed with ``home`` (amcl starts at
+``home`` in the map frame) and ground truth is compared with each goal carried into the world
+through it (test-oracle data).
 """
 from __future__ import annotations
 
