@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 import actionlib
 import numpy as np
 import rospy
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
@@ -27,7 +28,7 @@ from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
 from std_msgs.msg import Bool
 
-from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
 from chefbot_navigation.ros_util import wait_for_action_server
 from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
@@ -49,6 +50,9 @@ class Leg:
     xy_error: float        # final ground-truth distance to the goal pose (m)
     yaw_error: float       # final ground-truth heading error (rad)
     bumps: int             # bumper contacts during the leg
+    loc_error: float = float("nan")  # final localization error: map->base_footprint (in the world) vs truth (m)
+    estimate: tuple[float, float, float] | None = None  # final map->base_footprint (x m, y m, yaw rad)
+    truth: tuple[float, float, float] | None = None     # final ground truth, world frame (x m, y m, yaw rad)
 
     def line(self) -> str:
         if self.state != "SUCCEEDED":
@@ -56,16 +60,24 @@ class Leg:
         ratio = self.seconds / self.limit_s if self.limit_s > 0 else float("nan")
         return (f"{self.name}: {self.planned_m:.2f} m planned, {self.seconds:.1f} s "
                 f"(limit {self.limit_s:.1f} s, {ratio:.2f}x), final error {self.xy_error * 100:.1f} cm / "
-                f"{math.degrees(self.yaw_error):.1f} deg, bumps {self.bumps}")
+                f"{math.degrees(self.yaw_error):.1f} deg, localization error {self.loc_error * 100:.1f} cm, "
+                f"bumps {self.bumps}")
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
 class DeliveryClient:
-    """A move_base client with ground-truth bookkeeping (call after rospy.init_node)."""
+    """A move_base client with ground-truth bookkeeping (call after rospy.init_node).
 
-    def __init__(self) -> None:
+    Goals are in the ``map`` frame, ground truth in the simulator's world frame;
+    ``map_in_world`` (the map frame's pose in the world, m/rad; identity for the
+    world raster, from the tables file's ``map_in_world`` for a SLAM map) carries
+    goals into the world for the final-error check: a test oracle.
+    """
+
+    def __init__(self, map_in_world: Pose2D | None = None) -> None:
+        self.map_in_world = map_in_world or Pose2D()
         self._lock = threading.Lock()
         self.truth: Odometry | None = None
         self.bumps = 0
@@ -73,6 +85,17 @@ class DeliveryClient:
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
         self.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        self.tf_buffer = tf2_ros.Buffer()
+        self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+
+    def estimate(self) -> Pose2D | None:
+        """The localization's latest map->base_footprint, or None when tf has none."""
+        try:
+            t = self.tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0)).transform
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        q = t.rotation
+        return Pose2D(t.translation.x, t.translation.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
 
     def _on_truth(self, msg: Odometry) -> None:
         with self._lock:
@@ -83,6 +106,12 @@ class DeliveryClient:
             if msg.data and not self._bumping:
                 self.bumps += 1
             self._bumping = msg.data
+
+    def _truth_pose(self) -> Pose2D:
+        """The latest ground-truth pose (world frame); call with the lock held."""
+        p = self.truth.pose.pose
+        yaw = yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw"))
+        return Pose2D(p.position.x, p.position.y, yaw)
 
     def wait_ready(self, timeout: float) -> None:
         """Wait (wall clock) for ground truth and the move_base server."""
@@ -99,16 +128,17 @@ class DeliveryClient:
     def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
         """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
         with self._lock:
-            truth = self.truth
+            truth = self._truth_pose()
+        here = self.map_in_world.inverse().compose(truth)   # world -> map frame
         start = PoseStamped()
         start.header.frame_id = "map"
-        start.pose = truth.pose.pose
+        start.pose.position.x, start.pose.position.y = here.x, here.y
+        start.pose.orientation = Quaternion(*quaternion_from_yaw(here.yaw))
         goal = PoseStamped()
         goal.header.frame_id = "map"
         goal.pose.position.x, goal.pose.position.y = x, y
         goal.pose.orientation = Quaternion(*quaternion_from_yaw(yaw))
-        q = truth.pose.pose.orientation
-        start_yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        start_yaw = here.yaw
         try:
             plan = self.make_plan(start=start, goal=goal, tolerance=0.0).plan.poses
         except rospy.ServiceException:
@@ -144,9 +174,13 @@ class DeliveryClient:
             text = self.client.get_goal_status_text()
         seconds = (rospy.Time.now() - t0).to_sec()
         with self._lock:
-            p = self.truth.pose.pose
+            p = self._truth_pose()
             bumps = self.bumps - bumps0
-        xy = math.hypot(p.position.x - x, p.position.y - y)
-        dyaw = abs(math.remainder(yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw")) - yaw, 2 * math.pi))
+        est = self.estimate()
+        loc = self.map_in_world.compose(est).distance(p) if est else float("nan")
+        target = self.map_in_world.compose(Pose2D(x, y, yaw))   # the goal in the world frame
+        xy = math.hypot(p.x - target.x, p.y - target.y)
+        dyaw = abs(math.remainder(p.yaw - target.yaw, 2 * math.pi))
         return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
-                   seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps)
+                   seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps,
+                   loc_error=loc, estimate=(est.x, est.y, est.yaw) if est else None, truth=(p.x, p.y, p.yaw))
