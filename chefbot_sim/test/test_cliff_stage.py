@@ -20,7 +20,7 @@ from sensor_msgs.msg import Range
 from chefbot_common.rostest_helpers import SimRecorder
 
 WALL_TIMEOUT = 90.0   # s of wall time for any single condition
-TOPICS = {"left": "cliff_left", "center": "cliff_front", "right": "cliff_right"}   # topic suffix -> frame
+TOPICS = {"left": "cliff_left_link", "center": "cliff_front_link", "right": "cliff_right_link"}   # topic -> frame
 GUARD = "chefbot: cliff guard"
 
 

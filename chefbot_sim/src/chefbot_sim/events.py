@@ -65,10 +65,11 @@ class UltrasonicData(TypedDict):
 
 
 class CliffData(TypedDict):
-    """The cliff sensors, one entry per sensor in URDF order: names, beam cone (rad), limits and
+    """The cliff sensors, one entry per sensor in URDF order: names, URDF frames, beam cone (rad), limits and
     readings (m; +inf = no floor within max_range, i.e. a drop; -inf = closer than min_range; REP 117)."""
 
     names: list[str]
+    frames: list[str]
     field_of_view: np.ndarray
     min_range: np.ndarray
     max_range: np.ndarray

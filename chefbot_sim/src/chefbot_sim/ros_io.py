@@ -77,12 +77,12 @@ def range_msg(d: UltrasonicData, stamp, frame: str, radiation_type: int = Range.
 
 
 def cliff_msgs(d: CliffData, stamp) -> list[Range]:
-    """One sensor_msgs/Range (INFRARED) per cliff sensor, in the order of ``d``; the frame is the
-    sensor's name in the URDF block (the sensors have no TF frames yet: chefbot_description README)."""
+    """One sensor_msgs/Range (INFRARED) per cliff sensor, in the order of ``d``, stamped with the
+    sensor's URDF frame (``cliff_left_link`` ..., x along the beam)."""
     return [range_msg({"range": float(d["range"][i]), "min_range": float(d["min_range"][i]),
                        "max_range": float(d["max_range"][i]), "field_of_view": float(d["field_of_view"][i])},
-                      stamp, name, Range.INFRARED)
-            for i, name in enumerate(d["names"])]
+                      stamp, frame, Range.INFRARED)
+            for i, frame in enumerate(d["frames"])]
 
 
 def camera_info_msg(info: dict, frame: str) -> CameraInfo:

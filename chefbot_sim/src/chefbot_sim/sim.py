@@ -31,7 +31,7 @@ import numpy as np
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim import battery, imu_model
-from chefbot_sim.bullet import BulletSim
+from chefbot_sim.bullet import BulletError, BulletSim
 from chefbot_sim.camera import RgbdRenderer, RgbFrame
 from chefbot_sim.events import CliffData, Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
@@ -535,8 +535,14 @@ class Simulator:
         """Cliff sensors of the URDF block: per sensor its parent frame, beam origin and
         direction (+x of the sensor pose) in that frame, and limits (m)."""
         cliffs = self.params.cliffs
+        self.cliff_frames = []   # what each Range is stamped with: the sensor's URDF frame
         for c in cliffs:
             self.bullet.frame(c.parent)
+            try:
+                self.bullet.frame(f"{c.name}_link")
+                self.cliff_frames.append(f"{c.name}_link")
+            except BulletError:   # a model without the frames (older URDF): the sensor's name
+                self.cliff_frames.append(c.name)
         self._cliff_parents = sorted({c.parent for c in cliffs})
         self._cliff_parent_idx = np.array([self._cliff_parents.index(c.parent) for c in cliffs], dtype=int)
         poses = [c.pose() for c in cliffs]
@@ -562,8 +568,9 @@ class Simulator:
         frac, _ = self.bullet.cast_rays(origins, origins + dirs * self._cliff_max[:, None], floor=True)
         ranges = np.where(frac < 1.0, frac * self._cliff_max, np.inf)
         ranges[ranges < self._cliff_min] = -np.inf
-        return {"names": [c.name for c in self.params.cliffs], "range": ranges, "min_range": self._cliff_min,
-                "max_range": self._cliff_max, "field_of_view": np.array([c.field_of_view for c in self.params.cliffs])}
+        return {"names": [c.name for c in self.params.cliffs], "frames": self.cliff_frames, "range": ranges,
+                "min_range": self._cliff_min, "max_range": self._cliff_max,
+                "field_of_view": np.array([c.field_of_view for c in self.params.cliffs])}
 
     def _build_depth_rays(self) -> None:
         cam = self.depth_camera

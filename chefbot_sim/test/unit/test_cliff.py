@@ -46,6 +46,13 @@ def test_spawn_on_the_stage_and_flat_readings(stage):
     assert gt["position"][2] == pytest.approx(STAGE_TOP, abs=0.003)   # on the stage, not inside it
     d = stage.cliff()
     assert d["names"] == ["cliff_left", "cliff_front", "cliff_right"]
+    assert d["frames"] == ["cliff_left_link", "cliff_front_link", "cliff_right_link"]
+    # the URDF frame is where the block puts the sensor: x along the beam, straight down
+    for c, frame in zip(stage.params.cliffs, d["frames"], strict=True):
+        p_block = stage.bullet.frame_pose(c.parent)
+        p_frame, r_frame = stage.bullet.frame_pose(frame)
+        assert p_frame == pytest.approx(p_block[0] + p_block[1] @ c.pose()[:3, 3], abs=1e-9)
+        assert r_frame[:, 0] == pytest.approx([0, 0, -1], abs=0.02)   # the base rests tilted ~0.007 rad
     # the beam reads the sensor's true height above the stage top (~0.03 m)
     assert d["range"] == pytest.approx(sensor_heights(stage), abs=1e-3)
     assert np.all((d["range"] > 0.02) & (d["range"] < 0.04))
@@ -92,11 +99,12 @@ def test_low_floor_step_within_reach_reads_its_depth(urdf):
 
 
 def test_range_messages():
-    d = {"names": ["cliff_left", "cliff_front"], "range": np.array([0.031, np.inf]),
+    d = {"names": ["cliff_left", "cliff_front"], "frames": ["cliff_left_link", "cliff_front_link"],
+         "range": np.array([0.031, np.inf]),
          "min_range": np.array([0.01, 0.01]), "max_range": np.array([0.15, 0.15]),
          "field_of_view": np.array([0.087, 0.087])}
     msgs = ros_io.cliff_msgs(d, None)
-    assert [m.header.frame_id for m in msgs] == ["cliff_left", "cliff_front"]
+    assert [m.header.frame_id for m in msgs] == ["cliff_left_link", "cliff_front_link"]
     assert all(m.radiation_type == Range.INFRARED for m in msgs)
     assert msgs[0].range == pytest.approx(0.031) and msgs[1].range == math.inf
     assert (msgs[0].min_range, msgs[0].max_range, msgs[0].field_of_view) == pytest.approx((0.01, 0.15, 0.087))
