@@ -99,8 +99,8 @@ class TestLaunchErrors(unittest.TestCase):
         stepper = threading.Thread(target=step, daemon=True)
         stepper.start()
         pub = rospy.Publisher("cmd_vel", Twist, queue_size=1)
-        # the cliff guard is in the chain (default cliff_guard:=true): stand in for the board's
-        # cliff sensors with a floor 3 cm below each, so it lets the robot drive
+        # the cliff guard in the chain too (cliff_guard:=true; off by default on the robot): stand in
+        # for the board's cliff sensors with a floor 3 cm below each, so it lets the robot drive
         cliffs = [rospy.Publisher(f"cliff/{k}", Range, queue_size=1) for k in ("left", "center", "right")]
         floor = Range(radiation_type=Range.INFRARED, min_range=0.01, max_range=0.15, range=0.03)
 
@@ -108,7 +108,7 @@ class TestLaunchErrors(unittest.TestCase):
             for p in cliffs:
                 p.publish(floor)
             pub.publish(twist)
-        proc, out = start(launch(f"port:={link}"))
+        proc, out = start(launch(f"port:={link}", "cliff_guard:=true"))
         try:
             twist = Twist()
             twist.linear.x = 0.1
