@@ -115,7 +115,9 @@ class CameraTest(unittest.TestCase):
         self.assertTrue(0.005 < frac < 0.2, f"edge pixels {frac:.3%}")
         view = self.bridge.imgmsg_to_cv2(self.rec.msgs["depth_view"][-1])
         self.assertEqual(view.dtype, np.float32)
-        self.assertTrue(np.isfinite(view).all() and view.min() >= 0.0 and view.max() == 1.0)
+        # NORM_MINMAX in float32: the farthest reading maps to 1 within rounding
+        self.assertTrue(np.isfinite(view).all() and view.min() >= 0.0, (view.min(), view.max()))
+        self.assertAlmostEqual(float(view.max()), 1.0, places=5)
 
     def test_demo_survives_bad_images(self) -> None:
         pub_rgb = rospy.Publisher("camera/rgb/image_raw", Image, queue_size=5)
