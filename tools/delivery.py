@@ -139,7 +139,7 @@ class DeliveryClient:
         return {
             "map_file": str(map_file),
             "frame": self.map_frame,
-            "estimate_source": f"tf {self.map_frame} -> {self.base_frame} (what move_base uses)",
+            "estimate_source": f"tf {self.map_frame} -> {self.base_frame}, as move_base sees it",
             "truth_source": "ground_truth/odom (simulator oracle)",
             "period_s": SAMPLE_PERIOD_S,
             "samples": {"t": [round(s[0], 3) for s in samples], "truth": [r(s[1]) for s in samples],

@@ -158,7 +158,7 @@ def plot_trajectory(traj: dict, out: Path, map_file: Path | None = None) -> Path
     truth, est = traj["truth"], traj["estimate"]
     ax.plot(truth[:, 0], truth[:, 1], color="tab:blue", lw=1.8, label="ground truth (simulator)")
     ax.plot(est[:, 0], est[:, 1], color="tab:orange", lw=1.2, ls="--",
-            label=f"localization estimate ({traj['estimate_source']})")
+            label=f"localization estimate: {traj['estimate_source']}")
     # every leg's goal (table delivery poses and home) once, with its heading
     goals: dict[str, list[float]] = {leg["name"]: leg["goal"] for leg in traj["legs"]}
     for name, (gx, gy, gyaw) in goals.items():
@@ -225,7 +225,7 @@ def plot_localization_error(traj: dict, out: Path) -> Path:
     a1.set_ylabel("position error (m)")
     a2.set_ylabel("heading error (rad)")
     a2.set_xlabel("sim time since the first sample (s)")
-    fig.suptitle(f"Localization error: {traj['estimate_source']} vs ground truth", fontsize=11)
+    fig.suptitle(f"Localization error against the ground truth (estimate: {traj['estimate_source']})", fontsize=11)
     fig.tight_layout()
     fig.savefig(out)
     plt.close(fig)
