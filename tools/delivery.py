@@ -37,7 +37,7 @@ from nav_msgs.srv import GetPlan
 from plots import PlotError, pose_at, write_plots
 from std_msgs.msg import Bool
 
-from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
+from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
 from chefbot_navigation.ros_util import wait_for_action_server
 from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
@@ -61,6 +61,9 @@ class Leg:
     xy_error: float        # final ground-truth distance to the goal pose (m)
     yaw_error: float       # final ground-truth heading error (rad)
     bumps: int             # bumper contacts during the leg
+    loc_error: float = float("nan")  # final localization error: map->base_footprint (in the world) vs truth (m)
+    estimate: tuple[float, float, float] | None = None  # final map->base_footprint (x m, y m, yaw rad)
+    truth: tuple[float, float, float] | None = None     # final ground truth, world frame (x m, y m, yaw rad)
 
     def line(self) -> str:
         if self.state != "SUCCEEDED":
@@ -68,30 +71,51 @@ class Leg:
         ratio = self.seconds / self.limit_s if self.limit_s > 0 else float("nan")
         return (f"{self.name}: {self.planned_m:.2f} m planned, {self.seconds:.1f} s "
                 f"(limit {self.limit_s:.1f} s, {ratio:.2f}x), final error {self.xy_error * 100:.1f} cm / "
-                f"{math.degrees(self.yaw_error):.1f} deg, bumps {self.bumps}")
+                f"{math.degrees(self.yaw_error):.1f} deg, localization error {self.loc_error * 100:.1f} cm, "
+                f"bumps {self.bumps}")
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
 class DeliveryClient:
-    """A move_base client with ground-truth bookkeeping (call after rospy.init_node)."""
+    """A move_base client with ground-truth bookkeeping (call after rospy.init_node).
 
-    def __init__(self, map_frame: str = "map", base_frame: str = "base_footprint") -> None:
+    Goals are in the ``map`` frame, ground truth in the simulator's world frame;
+    ``map_in_world`` (the map frame's pose in the world, m/rad; identity for the
+    world raster, from the tables file's ``map_in_world`` for a SLAM map) carries
+    goals into the world for the final-error check: a test oracle.
+    """
+
+    def __init__(self, map_in_world: Pose2D | None = None) -> None:
+        self.map_in_world = map_in_world or Pose2D()
         self._lock = threading.Lock()
         self.truth: Odometry | None = None
         self.bumps = 0
         self._bumping = False
-        self.map_frame, self.base_frame = map_frame, base_frame
-        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=TRUTH_HISTORY)  # t, x, y, yaw
+        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=TRUTH_HISTORY)  # t, x, y, yaw (world)
         self._samples: list[tuple[float, tuple[float, float, float], tuple[float, float, float] | None]] = []
         self._legs: list[dict] = []
-        self._tf = tf2_ros.Buffer()
-        self._tf_listener = tf2_ros.TransformListener(self._tf)
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
         self.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        self.tf_buffer = tf2_ros.Buffer()
+        self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self._timer = rospy.Timer(rospy.Duration(SAMPLE_PERIOD_S), self._sample)
+
+    def _estimate_stamped(self) -> tuple[float, Pose2D] | None:
+        """The localization's latest map->base_footprint with its stamp (sim s), or None when tf has none."""
+        try:
+            tfm = self.tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        tr, q = tfm.transform.translation, tfm.transform.rotation
+        return tfm.header.stamp.to_sec(), Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+
+    def estimate(self) -> Pose2D | None:
+        """The localization's latest map->base_footprint, or None when tf has none."""
+        stamped = self._estimate_stamped()
+        return stamped[1] if stamped else None
 
     def _on_truth(self, msg: Odometry) -> None:
         p = msg.pose.pose
@@ -101,28 +125,23 @@ class DeliveryClient:
             self._history.append((msg.header.stamp.to_sec(), p.position.x, p.position.y, yaw))
 
     def _sample(self, _event: rospy.timer.TimerEvent) -> None:
-        """One trajectory sample: the estimate (tf, latest) and the truth at the estimate's stamp."""
-        try:
-            tfm = self._tf.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
-            tfm = None
+        """One trajectory sample: the estimate (tf, latest) and the truth at the estimate's stamp,
+        carried into the map frame (``map_in_world``)."""
+        stamped = self._estimate_stamped()
         with self._lock:
             history = list(self._history)
         if not history:
             return
-        if tfm is None:   # no localization yet: the truth alone, at its latest stamp
-            t, estimate = history[-1][0], None
-        else:
-            t = tfm.header.stamp.to_sec()
-            tr, q = tfm.transform.translation, tfm.transform.rotation
-            estimate = (tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        t, estimate = (history[-1][0], None) if stamped is None else stamped  # no localization yet: truth alone
         truth = pose_at(history, t)
         if truth is None:
             return
+        here = self.map_in_world.inverse().compose(Pose2D(*truth))   # world -> map frame
         with self._lock:
             if self._samples and t <= self._samples[-1][0]:
                 return          # nothing new (the sim is paused or the tf is stale)
-            self._samples.append((t, truth, estimate))
+            self._samples.append((t, (here.x, here.y, here.yaw),
+                                  None if estimate is None else (estimate.x, estimate.y, estimate.yaw)))
 
     def trajectory(self, map_file: str) -> dict:
         """The route's record so far (JSON-ready): samples, legs with plans, and the map they are drawn on.
@@ -138,9 +157,10 @@ class DeliveryClient:
             return None if v is None else [round(float(a), 4) for a in v]
         return {
             "map_file": str(map_file),
-            "frame": self.map_frame,
-            "estimate_source": f"tf {self.map_frame} -> {self.base_frame}, as move_base sees it",
-            "truth_source": "ground_truth/odom (simulator oracle)",
+            "frame": "map",
+            "estimate_source": "tf map -> base_footprint, as move_base sees it",
+            "truth_source": "ground_truth/odom (simulator oracle), carried into the map frame",
+            "map_in_world": [self.map_in_world.x, self.map_in_world.y, self.map_in_world.yaw],
             "period_s": SAMPLE_PERIOD_S,
             "samples": {"t": [round(s[0], 3) for s in samples], "truth": [r(s[1]) for s in samples],
                         "estimate": [r(s[2]) for s in samples]},
@@ -152,6 +172,12 @@ class DeliveryClient:
             if msg.data and not self._bumping:
                 self.bumps += 1
             self._bumping = msg.data
+
+    def _truth_pose(self) -> Pose2D:
+        """The latest ground-truth pose (world frame); call with the lock held."""
+        p = self.truth.pose.pose
+        yaw = yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw"))
+        return Pose2D(p.position.x, p.position.y, yaw)
 
     def wait_ready(self, timeout: float) -> None:
         """Wait (wall clock) for ground truth and the move_base server."""
@@ -168,16 +194,17 @@ class DeliveryClient:
     def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
         """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
         with self._lock:
-            truth = self.truth
+            truth = self._truth_pose()
+        here = self.map_in_world.inverse().compose(truth)   # world -> map frame
         start = PoseStamped()
         start.header.frame_id = "map"
-        start.pose = truth.pose.pose
+        start.pose.position.x, start.pose.position.y = here.x, here.y
+        start.pose.orientation = Quaternion(*quaternion_from_yaw(here.yaw))
         goal = PoseStamped()
         goal.header.frame_id = "map"
         goal.pose.position.x, goal.pose.position.y = x, y
         goal.pose.orientation = Quaternion(*quaternion_from_yaw(yaw))
-        q = truth.pose.pose.orientation
-        start_yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        start_yaw = here.yaw
         try:
             plan = self.make_plan(start=start, goal=goal, tolerance=0.0).plan.poses
         except rospy.ServiceException:
@@ -214,14 +241,18 @@ class DeliveryClient:
         t1 = rospy.Time.now()
         seconds = (t1 - t0).to_sec()
         with self._lock:
-            p = self.truth.pose.pose
+            p = self._truth_pose()
             bumps = self.bumps - bumps0
             self._legs.append({"name": name, "goal": [x, y, yaw], "t_start": round(t0.to_sec(), 3),
                                "t_end": round(t1.to_sec(), 3), "plan": np.round(pts, 3).tolist()})
-        xy = math.hypot(p.position.x - x, p.position.y - y)
-        dyaw = abs(math.remainder(yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw")) - yaw, 2 * math.pi))
+        est = self.estimate()
+        loc = self.map_in_world.compose(est).distance(p) if est else float("nan")
+        target = self.map_in_world.compose(Pose2D(x, y, yaw))   # the goal in the world frame
+        xy = math.hypot(p.x - target.x, p.y - target.y)
+        dyaw = abs(math.remainder(p.yaw - target.yaw, 2 * math.pi))
         return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
-                   seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps)
+                   seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps,
+                   loc_error=loc, estimate=(est.x, est.y, est.yaw) if est else None, truth=(p.x, p.y, p.yaw))
 
 
 def launch_map_file(roslaunch_cmd: list[str]) -> str:

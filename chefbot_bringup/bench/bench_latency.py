@@ -66,7 +66,7 @@ def measure(trials: int, event_driven: bool = True) -> dict:
     thread = threading.Thread(target=step_board, daemon=True)
     thread.start()
     launch = ["roslaunch", "--wait", "chefbot_bringup", "robot_standalone.launch", f"port:={link}",
-              "use_sonar:=false", f"event_driven:={str(event_driven).lower()}"]
+              "use_sonar:=false", "cliff_guard:=false", f"event_driven:={str(event_driven).lower()}"]
     latencies: list[float] = []
     try:
         with ProcessGroup(["roscore", "-p", str(port)], env=env, log=tmp / "roscore.log"), \

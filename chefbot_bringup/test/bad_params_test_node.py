@@ -23,6 +23,10 @@ CASES = [
     ("depth_to_scan", "_scan_height:=0", "~scan_height"),
     ("depth_to_scan", "_range_min:=-1.0", "~range_min"),
     ("keyboard_teleop", "_key_timeout:=-1.0", "stdin is not a terminal"),   # the TTY check comes first
+    ("cliff_guard", "_drop_threshold:=-0.1", "~drop_threshold"),
+    ("cliff_guard", "_timeout:=0.0", "~timeout"),
+    ("cliff_guard", "_topics:=[]", "~topics"),
+    ("cliff_guard", "_rate:=0", "~rate"),
 ]
 
 

@@ -17,6 +17,7 @@ import unittest
 import rospy
 import rostest
 from geometry_msgs.msg import Twist
+from sensor_msgs.msg import Range
 
 from chefbot_firmware.virtual_board import VirtualBoard
 
@@ -98,17 +99,26 @@ class TestLaunchErrors(unittest.TestCase):
         stepper = threading.Thread(target=step, daemon=True)
         stepper.start()
         pub = rospy.Publisher("cmd_vel", Twist, queue_size=1)
-        proc, out = start(launch(f"port:={link}"))
+        # the cliff guard in the chain too (cliff_guard:=true; off by default on the robot): stand in
+        # for the board's cliff sensors with a floor 3 cm below each, so it lets the robot drive
+        cliffs = [rospy.Publisher(f"cliff/{k}", Range, queue_size=1) for k in ("left", "center", "right")]
+        floor = Range(radiation_type=Range.INFRARED, min_range=0.01, max_range=0.15, range=0.03)
+
+        def send(twist: Twist) -> None:
+            for p in cliffs:
+                p.publish(floor)
+            pub.publish(twist)
+        proc, out = start(launch(f"port:={link}", "cliff_guard:=true"))
         try:
             twist = Twist()
             twist.linear.x = 0.1
             deadline = time.monotonic() + 60.0
             while not moving.is_set() and time.monotonic() < deadline and proc.poll() is None:
-                pub.publish(twist)
+                send(twist)
                 time.sleep(0.1)
             self.assertTrue(moving.is_set(), f"the robot never drove:\n{text_of(out)[-1500:]}")
             for _ in range(10):                      # Ctrl-C while the loops are busy publishing
-                pub.publish(twist)
+                send(twist)
                 time.sleep(0.1)
             if group:
                 os.killpg(proc.pid, signal.SIGINT)   # Ctrl-C in a terminal: the whole foreground group

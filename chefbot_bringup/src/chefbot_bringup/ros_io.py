@@ -13,6 +13,7 @@ from geometry_msgs.msg import Quaternion, TransformStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState, CameraInfo, Image, Imu, LaserScan, Range
 
+from chefbot_bringup.cliff_guard import CliffStatus
 from chefbot_bringup.depth_scan import Intrinsics, Scan
 from chefbot_bringup.launchpad import LaunchpadConfig, LaunchpadCore, battery_status, link_status
 from chefbot_bringup.odometry import OdometryState
@@ -169,3 +170,15 @@ def launchpad_diagnostics(core: LaunchpadCore, p: LaunchpadConfig, now: float, l
     arr = DiagnosticArray(status=[st, bat])
     arr.header.stamp = stamp
     return arr
+
+
+def cliff_diagnostics(status: CliffStatus, topics: list[str], stamp) -> DiagnosticArray:
+    """The cliff guard's verdict as a diagnostic: OK, or ERROR with the unsafe sensors' reasons."""
+    level = DiagnosticStatus.OK if status.safe else DiagnosticStatus.ERROR
+    text = status.message if status.safe else "forward motion blocked: " + status.message
+    st = DiagnosticStatus(level=level, name="chefbot: cliff guard", message=text, hardware_id="cliff sensors")
+    st.values = [KeyValue("sensors", " ".join(topics)), KeyValue("forward_allowed", str(status.safe))]
+    arr = DiagnosticArray(status=[st])
+    arr.header.stamp = stamp
+    return arr
+

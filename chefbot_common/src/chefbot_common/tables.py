@@ -25,6 +25,48 @@ def _number(v: Any, where: str) -> float:
     return float(v)
 
 
+def _pose(p: Any, where: str) -> Pose2D:
+    """A ``{x, y, yaw}`` mapping as a Pose2D (yaw default 0), or :class:`TablesError` naming ``where``."""
+    if not isinstance(p, dict):
+        raise TablesError(f"{where}: expected a mapping {{x, y, yaw}}, got {p!r}")
+    unknown = set(p) - {"x", "y", "yaw"}
+    if unknown:
+        raise TablesError(f"{where}: unknown key(s) {sorted(unknown)}")
+    for key in ("x", "y"):
+        if key not in p:
+            raise TablesError(f"{where}: missing field '{key}'")
+    return Pose2D(_number(p["x"], f"{where}.x"), _number(p["y"], f"{where}.y"),
+                  _number(p.get("yaw", 0.0), f"{where}.yaw"))
+
+
+def load_map_in_world(path: str | Path) -> Pose2D:
+    """The pose (m, rad) of the tables file's map frame in the simulated world's frame.
+
+    Test-oracle data for a map that is not the world raster (a SLAM map: its frame
+    is the robot's odometry frame at the first scan): the demo spawns the robot and
+    compares ground truth through it.  Written by ``align_tables``; identity when
+    absent.  Product nodes do not read it.  Raises :class:`TablesError`.
+    """
+    load_tables(path)  # validates the whole file
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    return _pose(data["map_in_world"], f"{path}: map_in_world") if "map_in_world" in data else Pose2D()
+
+
+def format_tables(poses: dict[str, Pose2D], header: str, world: str | None = None,
+                  map_in_world: Pose2D | None = None) -> str:
+    """A tables YAML (the format of :func:`load_tables`): ``header`` as ``#`` comment lines, then the poses."""
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    lines.append("frame: map")
+    if world:
+        lines.append(f"world: {world}")
+    if map_in_world is not None:
+        m = map_in_world
+        lines.append(f"map_in_world: {{x: {m.x:.4f}, y: {m.y:.4f}, yaw: {m.yaw:.5f}}}")
+    lines.append("poses:")
+    lines += [f"  {name}: {{x: {p.x:.4f}, y: {p.y:.4f}, yaw: {p.yaw:.5f}}}" for name, p in poses.items()]
+    return "\n".join(lines) + "\n"
+
+
 def load_tables(path: str | Path) -> dict[str, Pose2D]:
     """Load the named delivery poses (``home``, ``table_1`` ...) of a tables YAML.
 
@@ -36,7 +78,9 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
           table_1: {x: 2.05, y: -3.0, yaw: 0.0}
 
     ``yaw`` in rad (default 0).  ``home`` is required; names are unique by YAML
-    construction.  Raises :class:`TablesError` naming the file and the entry.
+    construction.  An optional ``map_in_world: {x, y, yaw}`` is test-oracle data
+    (see :func:`load_map_in_world`).  Raises :class:`TablesError` naming the file
+    and the entry.
     """
     path = Path(path)
     try:
@@ -49,25 +93,15 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
         raise TablesError(f"{path}: invalid YAML: {e}") from e
     if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):
         raise TablesError(f"{path}: expected a mapping with a 'poses' mapping")
-    unknown = set(data) - {"frame", "world", "poses"}
+    unknown = set(data) - {"frame", "world", "poses", "map_in_world"}
     if unknown:
         raise TablesError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
     frame = data.get("frame", "map")
     if frame != "map":
         raise TablesError(f"{path}: frame must be 'map', got {frame!r}")
-    out: dict[str, Pose2D] = {}
-    for name, p in data["poses"].items():
-        where = f"{path}: poses.{name}"
-        if not isinstance(p, dict):
-            raise TablesError(f"{where}: expected a mapping {{x, y, yaw}}, got {p!r}")
-        unknown = set(p) - {"x", "y", "yaw"}
-        if unknown:
-            raise TablesError(f"{where}: unknown key(s) {sorted(unknown)}")
-        for key in ("x", "y"):
-            if key not in p:
-                raise TablesError(f"{where}: missing field '{key}'")
-        out[str(name)] = Pose2D(_number(p["x"], f"{where}.x"), _number(p["y"], f"{where}.y"),
-                                _number(p.get("yaw", 0.0), f"{where}.yaw"))
+    if "map_in_world" in data:
+        _pose(data["map_in_world"], f"{path}: map_in_world")
+    out = {str(name): _pose(p, f"{path}: poses.{name}") for name, p in data["poses"].items()}
     if "home" not in out:
         raise TablesError(f"{path}: missing the 'home' pose")
     return out

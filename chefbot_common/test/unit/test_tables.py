@@ -57,3 +57,22 @@ def test_tables_errors(tmp_path: Path, text: str, words: list):
     for w in words:
         assert w in str(e.value)
 
+
+
+def test_format_round_trips_with_map_in_world(tmp_path: Path) -> None:
+    from chefbot_common.geometry import Pose2D
+    from chefbot_common.tables import format_tables, load_map_in_world
+    poses = {"home": Pose2D(-0.041, 0.0054, 0.0044), "table_1": Pose2D(2.0221, -2.9856, 0.0044)}
+    p = tmp_path / "t.yaml"
+    p.write_text(format_tables(poses, "made by a test\nsecond line", world="hotel",
+                               map_in_world=Pose2D(0.041, -0.0056, -0.0044)))
+    assert p.read_text().startswith("# made by a test\n# second line\nframe: map\n")
+    assert load_tables(p) == poses
+    assert load_map_in_world(p) == Pose2D(0.041, -0.0056, -0.0044)
+    plain = tmp_path / "plain.yaml"
+    plain.write_text(format_tables(poses, ""))
+    assert load_map_in_world(plain) == Pose2D()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("poses: {home: {x: 0, y: 0}}\nmap_in_world: {x: 1, yaw: 0}\n")
+    with pytest.raises(TablesError, match="map_in_world: missing field 'y'"):
+        load_tables(bad)

@@ -49,10 +49,14 @@ FRAME_TREE: Mapping[str, str] = {
     "camera_rgb_optical_frame": "camera_rgb_frame",
     "gyro_link": "base_link",
     "ultrasonic_link": "base_link",
+    "cliff_left_link": "base_link",
+    "cliff_front_link": "base_link",
+    "cliff_right_link": "base_link",
 }
 # Frames that are pure coordinate frames (no body, no inertial).
 VIRTUAL_FRAMES = frozenset({"base_footprint", "camera_depth_frame", "camera_depth_optical_frame",
-                            "camera_rgb_frame", "camera_rgb_optical_frame"})
+                            "camera_rgb_frame", "camera_rgb_optical_frame",
+                            "cliff_left_link", "cliff_front_link", "cliff_right_link"})
 
 # Mass and inertia given by urdf_for_physics() to links that have no inertial
 # (pure frames). pybullet would otherwise invent 1 kg for each of them.

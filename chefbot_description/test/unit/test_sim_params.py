@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
 import pytest
 
 from chefbot_description import model
@@ -70,6 +71,8 @@ def test_cliff_sensors(params: model.SimParams, robot: model.RobotModel) -> None
         assert math.hypot(origin[0], origin[1]) < 0.15  # under the base
         for centre in casters:  # its beam misses the caster balls
             assert math.hypot(*(origin[:2] - centre[:2])) > 0.015
+        # the URDF frame the sim stamps its Range with sits exactly where the block says
+        np.testing.assert_allclose(model.frame_transform(robot, f"{c.name}_link"), pose, atol=1e-12)
 
 
 def test_bumper(params: model.SimParams) -> None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import http.client
 import math
+import signal
+import sys
 import threading
 import xmlrpc.client
 from collections.abc import Callable, Sequence
@@ -18,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from PyQt5.QtCore import QObject, Qt, QTimer, pyqtSignal
-from PyQt5.QtWidgets import QWidget
+from PyQt5.QtCore import QMetaObject, QObject, Qt, QTimer, pyqtSignal
+from PyQt5.QtWidgets import QApplication, QWidget
 
 from chefbot_gui.presenter import Destination, OrderMode
 
@@ -108,6 +110,36 @@ def schedule_screenshot(widget: QWidget, path: str | Path, delay_s: float,
     return timer
 
 
+def quit_later(app: QApplication) -> Callable[..., None]:
+    """A callable that makes ``app`` quit from any thread or signal handler (queued into the GUI thread)."""
+    return lambda *_args: QMetaObject.invokeMethod(app, "quit", Qt.QueuedConnection)
+
+
+def run_event_loop(app: QApplication, window: QWidget, prog: str, screenshot: str | None,
+                   screenshot_delay_s: float) -> int:
+    """Run Qt's loop until quit; SIGINT/SIGTERM quit it; with ``screenshot`` (a PNG path) save
+    the window ``screenshot_delay_s`` seconds after start and quit.  Returns the exit code
+    (1 if the screenshot failed)."""
+    signal.signal(signal.SIGINT, quit_later(app))
+    signal.signal(signal.SIGTERM, quit_later(app))
+    # Python runs signal handlers only between bytecodes: give it some while Qt sleeps
+    wake = QTimer()
+    wake.timeout.connect(lambda: None)
+    wake.start(200)
+    rc = 0
+    if screenshot:
+        def done(ok: bool) -> None:
+            nonlocal rc
+            rc = 0 if ok else 1
+            print(f"{prog}: screenshot {'saved to' if ok else 'FAILED:'} {screenshot}",
+                  file=sys.stdout if ok else sys.stderr)
+            app.quit()
+        schedule_screenshot(window, screenshot, screenshot_delay_s, done)
+    app.exec_()
+    wake.stop()
+    return rc
+
+
 def command_line_params(argv: Sequence[str]) -> Callable[[str, Any], Any]:
     """A ``get(name, default)`` over the ``_name:=value`` arguments (YAML-typed, like rospy).
 
@@ -136,10 +168,15 @@ class _TimeoutTransport(xmlrpc.client.Transport):
         return conn
 
 
+def master_proxy(uri: str, timeout_s: float) -> xmlrpc.client.ServerProxy:
+    """An XML-RPC proxy of the ROS master at ``uri`` whose calls give up after ``timeout_s`` seconds."""
+    return xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout_s))
+
+
 def master_reachable(uri: str, timeout_s: float = 0.5) -> bool:
     """Does a ROS master answer ``getPid`` at ``uri`` within ``timeout_s`` seconds?"""
     try:
-        code, _msg, _pid = xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport(timeout_s)).getPid("/robot_gui")
+        code, _msg, _pid = master_proxy(uri, timeout_s).getPid("/robot_gui")
     except (OSError, xmlrpc.client.Error, ValueError, TypeError):
         return False
     return code == 1

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 
 from PyQt5 import uic
-from PyQt5.QtCore import Qt, QTimer, pyqtSlot
+from PyQt5.QtCore import Qt, QTimer, pyqtSignal, pyqtSlot
 from PyQt5.QtWidgets import QListView, QListWidgetItem, QWidget
 
 from chefbot_common.grid import GridInfo
@@ -45,8 +45,13 @@ class RobotGuiWindow(QWidget):
     """The staff window.  Stable objectNames: ``tableList``, ``goButton``, ``homeButton``,
     ``cancelButton``, ``batteryBar``, ``statusLabel``, ``mapView``, ``queueList``,
     ``servedButton``, ``removeButton``, ``orderCombo``, ``waitSpinBox``, ``hintLabel``,
-    ``healthLabel``, ``routeProgress``.
+    ``healthLabel``, ``routeProgress``, ``monitorButton``.
+
+    ``monitorRequested`` is emitted by the *Robot monitor…* button; the node script
+    opens the monitor (``chefbot_gui.monitor_app``), so this window needs no ROS.
     """
+
+    monitorRequested = pyqtSignal()
 
     def __init__(self, presenter: DeliveryPresenter, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -86,6 +91,7 @@ class RobotGuiWindow(QWidget):
         self.orderCombo.currentIndexChanged.connect(self._order_changed)
         self.waitSpinBox.valueChanged.connect(lambda v: presenter.set_wait_time(float(v)))
         self.queueList.itemSelectionChanged.connect(self._queue_selection_changed)
+        self.monitorButton.clicked.connect(self.monitorRequested)
 
         self._timer = QTimer(self)
         self._timer.timeout.connect(presenter.tick)

@@ -121,3 +121,18 @@ def test_node_joins_ros_when_the_master_appears_later(tmp_path: Path) -> None:
             # the command-line params were uploaded by init_node once the master answered
             assert master.getParam(f"{ns}/robot_gui/tables_file") == str(TABLES)
             assert gui.poll() is None
+
+
+def test_monitor_screenshot_without_master(tmp_path: Path) -> None:
+    """``rosrun chefbot_gui robot_monitor`` with no master: the window opens, says so, exits 0."""
+    uri = _free_uri()
+    png = tmp_path / "monitor.png"
+    env = dict(os.environ, ROS_MASTER_URI=uri, QT_QPA_PLATFORM="offscreen")
+    r = subprocess.run(["rosrun", "chefbot_gui", "robot_monitor", "--screenshot", str(png),
+                        "--screenshot-delay", "1.5"],
+                       env=env, capture_output=True, text=True, timeout=HANG_GUARD_S, start_new_session=True)
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out
+    assert f"no ROS master at {uri} — retrying" in out
+    assert "Traceback" not in out
+    assert png.stat().st_size > 5000

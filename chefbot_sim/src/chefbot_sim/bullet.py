@@ -51,6 +51,9 @@ GROUP_ALL = 0xFFFF
 # exact but slip on box floors).
 WHEEL_CONTACT_CORRECTION = 0.00125  # m
 FLOOR_HALF_SIZE = 100.0  # m: the floor spans 200 × 200 m around the origin
+# A contact whose normal has a larger vertical component is the robot standing on
+# something (a stage), not a bump (cos 45°).
+SUPPORT_NORMAL_Z = 0.7
 
 
 class BulletError(RuntimeError):
@@ -122,7 +125,8 @@ class BulletSim:
             0.0, self._c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half),
             self._c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half), basePosition=(0.0, 0.0, -0.05))
         self._c.changeVisualShape(self.floor, -1, rgbaColor=(0.85, 0.85, 0.8, 1.0))
-        self._c.setCollisionFilterGroupMask(self.floor, -1, GROUP_FLOOR, GROUP_ROBOT)
+        # rays answer only when asked for the floor (cast_rays(floor=True): the cliff sensors)
+        self._c.setCollisionFilterGroupMask(self.floor, -1, GROUP_FLOOR, GROUP_ROBOT | GROUP_RAY)
         self.robot: int | None = None
         self._joints: dict[str, int] = {}
         self._links: dict[str, int] = {}
@@ -191,8 +195,9 @@ class BulletSim:
 
     # ------------------------------------------------------------ robot
     def load_robot(self, urdf_xml: str, pose: Pose2D, base_friction: float = 0.0,
-                   wheel_contact_correction: float = WHEEL_CONTACT_CORRECTION) -> None:
-        """Load the robot from a URDF string with its root (``base_footprint``) at ``pose``.
+                   wheel_contact_correction: float = WHEEL_CONTACT_CORRECTION, z: float = 0.0) -> None:
+        """Load the robot from a URDF string with its root (``base_footprint``) at ``pose``,
+        ``z`` m above the world origin (the height of the surface it stands on).
 
         Inertia comes from the URDF.  Fixed links are merged into their parent
         body (3× faster physics); their frames stay available by name through
@@ -232,7 +237,7 @@ class BulletSim:
                 f.write(ET.tostring(root))
             with self.no_rendering(), _quiet_stdout():  # pybullet prints every merged link
                 self.robot = self._c.loadURDF(
-                    path, basePosition=(pose.x, pose.y, 0.0),
+                    path, basePosition=(pose.x, pose.y, float(z)),
                     baseOrientation=self._c.getQuaternionFromEuler((0, 0, pose.yaw)),
                     flags=pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_MERGE_FIXED_LINKS)
         except pybullet.error as e:
@@ -332,7 +337,7 @@ class BulletSim:
         return np.array(st[4]), np.array(st[5])
 
     def teleport(self, pose: Pose2D, z: float = 0.0) -> None:
-        """Put the robot's root at ``pose`` (at rest, wheels stopped)."""
+        """Put the robot's root at ``pose``, ``z`` m up (at rest, wheels stopped)."""
         r = self._need_robot()
         c = self._c
         inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
@@ -364,12 +369,13 @@ class BulletSim:
         self._c.removeState(state_id)
 
     # ------------------------------------------------------------ sensing
-    def cast_rays(self, origins: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def cast_rays(self, origins: np.ndarray, ends: np.ndarray, floor: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Cast rays from ``origins`` to ``ends`` ((N, 3) world, m) against the world
-        only (never the robot).  Returns hit fractions in [0, 1] (1 = no hit) and
-        the hit body ids (-1 = none)."""
+        (and the floor when ``floor``), never the robot, in one ``rayTestBatch``.
+        Returns hit fractions in [0, 1] (1 = no hit) and the hit body ids (-1 = none)."""
+        mask = GROUP_WORLD | GROUP_FLOOR if floor else GROUP_WORLD
         out = self._c.rayTestBatch(np.ascontiguousarray(origins, float), np.ascontiguousarray(ends, float),
-                                   numThreads=0, collisionFilterMask=GROUP_WORLD)
+                                   numThreads=0, collisionFilterMask=mask)
         ids = np.fromiter((h[0] for h in out), dtype=np.int64, count=len(out))
         frac = np.fromiter((h[2] for h in out), dtype=float, count=len(out))
         frac[ids < 0] = 1.0
@@ -400,13 +406,14 @@ class BulletSim:
         return image, depth
 
     def robot_contacts(self) -> list[tuple[str, int, np.ndarray]]:
-        """Contacts of the robot with anything but the floor:
+        """Contacts of the robot with anything but what it stands on (the floor, or the
+        top of a platform: contacts whose normal is within ~45° of vertical):
         (robot link name, other body id, world contact point m)."""
         r = self._need_robot()
         names = {v: k for k, v in self._links.items()}
         out = []
         for cp in self._c.getContactPoints(bodyA=r):
-            if cp[2] == self.floor or cp[2] == r:
+            if cp[2] == self.floor or cp[2] == r or abs(cp[7][2]) > SUPPORT_NORMAL_Z:
                 continue
             out.append((names.get(cp[3], str(cp[3])), cp[2], np.array(cp[5])))
         return out

@@ -11,7 +11,7 @@ from typing import Literal, NamedTuple, TypedDict, Union
 
 import numpy as np
 
-SensorKind = Literal["clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb",
+SensorKind = Literal["clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb",
                      "bumper"]
 
 
@@ -64,6 +64,18 @@ class UltrasonicData(TypedDict):
     range: float
 
 
+class CliffData(TypedDict):
+    """The cliff sensors, one entry per sensor in URDF order: names, URDF frames, beam cone (rad), limits and
+    readings (m; +inf = no floor within max_range, i.e. a drop; -inf = closer than min_range; REP 117)."""
+
+    names: list[str]
+    frames: list[str]
+    field_of_view: np.ndarray
+    min_range: np.ndarray
+    max_range: np.ndarray
+    range: np.ndarray
+
+
 class BumperData(TypedDict):
     """Whether the robot touches anything, and the names of the bodies it touches."""
 
@@ -73,7 +85,7 @@ class BumperData(TypedDict):
 
 # clock: sim time (s); depth: float32 (H, W) m; rgb: uint8 (H, W, 3)
 EventData = Union[float, np.ndarray, JointStatesData, GroundTruthData, OdomData, ImuData, UltrasonicData,
-                  BumperData]
+                  CliffData, BumperData]
 
 
 class Event(NamedTuple):

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from chefbot_common.params import read_config
+from chefbot_common.params import ParamError, read_config
 from chefbot_sim.sim import SimOptions
 
 DEFAULT_FIRMWARE_MAX_RTF = 0.0   # no cap; see README "Real-time factor in firmware mode"
@@ -68,6 +68,31 @@ def read_sim_params(get: Callable[[str, Any], Any]) -> tuple[SimNodeParams, SimO
                                          if f.name != "time_step"})
     opts.validate()
     return node, opts
+
+
+def cliff_topics(sensors: list[str], mapping: Any) -> list[str]:
+    """Topic of each cliff sensor (URDF ``<cliff name=...>``) from ``~cliff_topics`` (sensor name -> topic).
+
+    A sensor missing from the mapping publishes on ``cliff/<name without 'cliff_'>``; topics are
+    relative so they follow the node's namespace.  ParamError names a bad entry.
+    """
+    if mapping is None:
+        mapping = {}
+    if not isinstance(mapping, dict):
+        raise ParamError(f"parameter ~cliff_topics must be a map sensor name -> topic, got {mapping!r}")
+    unknown = sorted(set(mapping) - set(sensors))
+    if unknown:
+        raise ParamError(f"parameter ~cliff_topics names {', '.join(map(str, unknown))}, but the robot's cliff "
+                         f"sensors are {', '.join(sensors)}")
+    topics = []
+    for name in sensors:
+        topic = mapping.get(name, "cliff/" + name.removeprefix("cliff_"))
+        if not isinstance(topic, str) or not topic or topic.startswith("/"):
+            raise ParamError(f"parameter ~cliff_topics/{name} must be a non-empty relative topic name, got {topic!r}")
+        topics.append(topic)
+    if len(set(topics)) != len(topics):
+        raise ParamError(f"parameter ~cliff_topics maps two sensors to one topic: {topics}")
+    return topics
 
 
 def pacing(firmware: bool, rtf: float) -> tuple[int, float | None]:

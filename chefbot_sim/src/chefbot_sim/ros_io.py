@@ -11,13 +11,13 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, Range
 
 from chefbot_bringup.odometry import OdometryState
 from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs
-from chefbot_sim.events import GroundTruthData, ImuData, JointStatesData, OdomData, UltrasonicData
+from chefbot_sim.events import CliffData, GroundTruthData, ImuData, JointStatesData, OdomData, UltrasonicData
 from chefbot_vision.ros_io import camera_info
 
 _ZERO_COV = np.zeros((6, 6))
 
-__all__ = ["camera_info_msg", "depth_to_image", "ground_truth_msg", "imu_msg", "joint_state_msg", "odom_msgs",
-           "range_msg", "rgb_to_image"]
+__all__ = ["camera_info_msg", "cliff_msgs", "depth_to_image", "ground_truth_msg", "imu_msg", "joint_state_msg",
+           "odom_msgs", "range_msg", "rgb_to_image"]
 
 
 def _diag3(v: float) -> list[float]:
@@ -66,14 +66,23 @@ def imu_msg(d: ImuData, stamp, frame: str) -> Imu:
     return m
 
 
-def range_msg(d: UltrasonicData, stamp, frame: str) -> Range:
-    """sensor_msgs/Range of the ultrasonic sensor."""
+def range_msg(d: UltrasonicData, stamp, frame: str, radiation_type: int = Range.ULTRASOUND) -> Range:
+    """sensor_msgs/Range of the ultrasonic sensor (or, with ``Range.INFRARED``, one cliff sensor)."""
     m = Range()
     m.header.stamp, m.header.frame_id = stamp, frame
-    m.radiation_type = Range.ULTRASOUND
+    m.radiation_type = radiation_type
     m.field_of_view, m.min_range, m.max_range, m.range = (d["field_of_view"], d["min_range"], d["max_range"],
                                                           d["range"])
     return m
+
+
+def cliff_msgs(d: CliffData, stamp) -> list[Range]:
+    """One sensor_msgs/Range (INFRARED) per cliff sensor, in the order of ``d``, stamped with the
+    sensor's URDF frame (``cliff_left_link`` ..., x along the beam)."""
+    return [range_msg({"range": float(d["range"][i]), "min_range": float(d["min_range"][i]),
+                       "max_range": float(d["max_range"][i]), "field_of_view": float(d["field_of_view"][i])},
+                      stamp, frame, Range.INFRARED)
+            for i, frame in enumerate(d["frames"])]
 
 
 def camera_info_msg(info: dict, frame: str) -> CameraInfo:

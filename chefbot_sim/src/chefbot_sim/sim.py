@@ -31,18 +31,18 @@ import numpy as np
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_sim import battery, imu_model
-from chefbot_sim.bullet import BulletSim
+from chefbot_sim.bullet import BulletError, BulletSim
 from chefbot_sim.camera import RgbdRenderer, RgbFrame
-from chefbot_sim.events import Event, GroundTruthData, ImuData, OdomData, UltrasonicData
+from chefbot_sim.events import CliffData, Event, GroundTruthData, ImuData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.wheel_noise import WheelNoise, measure_wheels, quantise
-from chefbot_sim.world import Shape, World
+from chefbot_sim.world import Shape, World, surface_height
 from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
-SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "depth", "rgb", "bumper")
+SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper")
 DRIVES = ("plugin", "firmware")
 
 
@@ -239,7 +239,8 @@ class Simulator:
         self.bullet = BulletSim(gui=gui, time_step=self.options.time_step,
                                 solver_iterations=self.options.solver_iterations)
         self.bullet.load_world(world)
-        self.bullet.load_robot(urdf_xml, start)
+        # the robot stands on whatever is under its start pose (a stage, a platform)
+        self.bullet.load_robot(urdf_xml, start, z=world.surface_height(start.x, start.y))
         p = self.params
         self._wheels = [self.bullet.joint(p.drive.left_joint), self.bullet.joint(p.drive.right_joint)]
         self.joint_names = list(self.bullet.movable_joints())
@@ -247,6 +248,7 @@ class Simulator:
         for name in (p.depth_camera.depth_frame, p.depth_camera.rgb_frame, p.imu.frame,
                      p.ultrasonic.frame, p.drive.base_frame, p.bumper.link):
             self.bullet.frame(name)  # fail now, naming the frame, not at the first reading
+        self._build_cliffs()
         cam = p.depth_camera
         self.depth_camera = CameraModel.from_fov(cam.width, cam.height, cam.horizontal_fov)
         self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
@@ -264,6 +266,7 @@ class Simulator:
             "clock": self.options.clock_rate, "joint_states": self.options.joint_state_rate,
             "ground_truth": self.options.ground_truth_rate, "odom": p.drive.update_rate,
             "imu": p.imu.update_rate, "ultrasonic": p.ultrasonic.update_rate,
+            "cliff": max((c.update_rate for c in p.cliffs), default=0.0),
             "depth": cam.update_rate, "rgb": self.options.rgb_rate, "bumper": self.options.bumper_rate,
         }
         self.drive = self.options.drive
@@ -430,6 +433,8 @@ class Simulator:
             return self.ground_truth()
         if kind == "ultrasonic":
             return self._sonar()
+        if kind == "cliff":
+            return self.cliff()
         if kind == "depth":
             return self.depth_image()
         if kind == "rgb":
@@ -525,6 +530,47 @@ class Simulator:
             r = min(max(r, us.min_range), us.max_range)
         return {"range": r, "min_range": us.min_range, "max_range": us.max_range,
                 "field_of_view": us.field_of_view}
+
+    def _build_cliffs(self) -> None:
+        """Cliff sensors of the URDF block: per sensor its parent frame, beam origin and
+        direction (+x of the sensor pose) in that frame, and limits (m)."""
+        cliffs = self.params.cliffs
+        self.cliff_frames = []   # what each Range is stamped with: the sensor's URDF frame
+        for c in cliffs:
+            self.bullet.frame(c.parent)
+            try:
+                self.bullet.frame(f"{c.name}_link")
+                self.cliff_frames.append(f"{c.name}_link")
+            except BulletError:   # a model without the frames (older URDF): the sensor's name
+                self.cliff_frames.append(c.name)
+        self._cliff_parents = sorted({c.parent for c in cliffs})
+        self._cliff_parent_idx = np.array([self._cliff_parents.index(c.parent) for c in cliffs], dtype=int)
+        poses = [c.pose() for c in cliffs]
+        self._cliff_origin = np.array([t[:3, 3] for t in poses], float).reshape(-1, 3)
+        self._cliff_dir = np.array([t[:3, 0] for t in poses], float).reshape(-1, 3)
+        self._cliff_min = np.array([c.min_range for c in cliffs], float)
+        self._cliff_max = np.array([c.max_range for c in cliffs], float)
+
+    def cliff(self) -> CliffData:
+        """Range (m) along each cliff sensor's beam to the floor or whatever is below, one
+        ``rayTestBatch`` for all sensors; REP 117: +inf = nothing within max_range (a drop),
+        -inf = closer than min_range.
+
+        One ray per sensor, on the beam axis: the 5° cone is 3 mm wide at the 0.03 m
+        the floor is away and 13 mm at max range, well under the robot's stopping
+        distance, so a cone of rays would cost more and change nothing that matters.
+        """
+        frames = [self.bullet.frame_pose(name) for name in self._cliff_parents]
+        pos = np.array([f[0] for f in frames])[self._cliff_parent_idx]
+        rot = np.array([f[1] for f in frames])[self._cliff_parent_idx]
+        origins = pos + np.einsum("nij,nj->ni", rot, self._cliff_origin)
+        dirs = np.einsum("nij,nj->ni", rot, self._cliff_dir)
+        frac, _ = self.bullet.cast_rays(origins, origins + dirs * self._cliff_max[:, None], floor=True)
+        ranges = np.where(frac < 1.0, frac * self._cliff_max, np.inf)
+        ranges[ranges < self._cliff_min] = -np.inf
+        return {"names": [c.name for c in self.params.cliffs], "frames": self.cliff_frames, "range": ranges,
+                "min_range": self._cliff_min, "max_range": self._cliff_max,
+                "field_of_view": np.array([c.field_of_view for c in self.params.cliffs])}
 
     def _build_depth_rays(self) -> None:
         cam = self.depth_camera
@@ -638,9 +684,9 @@ class Simulator:
             self.firmware.resync(self.s.wheel_measured)
 
     def teleport(self, pose: Pose2D) -> None:
-        """Put the robot at ``pose`` at rest; odometry (and in firmware mode the
-        encoder counts) keeps counting from where it was."""
-        self.bullet.teleport(pose)
+        """Put the robot at ``pose`` at rest, on the surface there (floor or platform top);
+        odometry (and in firmware mode the encoder counts) keeps counting from where it was."""
+        self.bullet.teleport(pose, z=surface_height(self.world.shapes + self._spawned, pose.x, pose.y))
         self._resync_wheels()
         self.s.imu_prev_vel = None
         self.s.cmd_time = -math.inf

@@ -150,6 +150,10 @@ class World:
         d = [s.distance_xy(x, y) for s in self.shapes_in_band(z_low, z_high)]
         return min(d) if d else math.inf
 
+    def surface_height(self, x: float, y: float) -> float:
+        """Height (m) of the surface at (x, y) a robot spawned there stands on (see :func:`surface_height`)."""
+        return surface_height(self.shapes, x, y)
+
     def bounds_xy(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) of all shapes, m; zeros for an empty world."""
         if not self.shapes:
@@ -157,6 +161,26 @@ class World:
         lo = np.min([s.aabb()[0] for s in self.shapes], axis=0)
         hi = np.max([s.aabb()[1] for s in self.shapes], axis=0)
         return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
+
+
+STEP_TOLERANCE = 0.01  # m: a shape whose bottom is this close to a surface stands on it
+
+
+def surface_height(shapes: list[Shape], x: float, y: float) -> float:
+    """Height (m) of what a robot placed at (x, y) stands on: the floor (0) or the top
+    of the shapes under that point that rest on it, stacked (a stage, a box on a stage).
+
+    A shape counts when its footprint contains (x, y) and its bottom is within
+    :data:`STEP_TOLERANCE` of the surface found so far, so an overhang (a shelf
+    whose bottom is above the surface) does not lift the robot onto its top.
+    Footprints are taken as upright prisms (see :meth:`Shape.distance_xy`).
+    """
+    under = sorted((s.z_range() for s in shapes if s.distance_xy(x, y) <= 0.0), key=lambda r: r[0])
+    surface = 0.0
+    for lo, hi in under:   # by bottom height: each one can only rest on those before it
+        if lo <= surface + STEP_TOLERANCE:
+            surface = max(surface, hi)
+    return surface
 
 
 # ------------------------------------------------------------------ rotations
