@@ -7,15 +7,23 @@ simulator's ground truth (``ground_truth/odom``): planned path length
 (``move_base/make_plan``) and the time-optimal limit along it
 (chefbot_navigation.time_limit.profile_limit: speed, acceleration and turn
 limits), duration in sim time, final position/heading error, bumper contacts.
+Over the whole route it also records, at 5 Hz sim time, the ground-truth pose
+next to the localization estimate as move_base sees it (tf ``map`` ->
+``base_footprint`` at the estimate's own stamp, the truth interpolated to that
+stamp), and each leg's global plan (the ``make_plan`` result the leg's limit is
+computed on): :meth:`DeliveryClient.trajectory`, plotted by tools/plots.py.
 Needs a running simulation + navigation on the current ROS master
 (``navigation_demo.launch``).
 """
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
+from collections import deque
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import actionlib
 import numpy as np
@@ -26,6 +34,7 @@ from geometry_msgs.msg import PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
+from plots import PlotError, pose_at, write_plots
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
@@ -36,6 +45,8 @@ MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
 # the robot's limits as move_base's controller has them (param/move_base.yaml: max_vel_x,
 # max_vel_theta, acc_lim_x, acc_lim_theta)
 LIMITS = MotionLimits(v_max=MAX_SPEED, w_max=2.5, acc=0.8, dec=0.8, alpha=3.0)
+SAMPLE_PERIOD_S = 0.2     # sim s between trajectory samples (5 Hz)
+TRUTH_HISTORY = 100       # ground-truth messages kept to interpolate at the estimate's stamp (2 s at 50 Hz)
 
 
 @dataclass
@@ -82,24 +93,79 @@ class DeliveryClient:
         self.truth: Odometry | None = None
         self.bumps = 0
         self._bumping = False
+        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=TRUTH_HISTORY)  # t, x, y, yaw (world)
+        self._samples: list[tuple[float, tuple[float, float, float], tuple[float, float, float] | None]] = []
+        self._legs: list[dict] = []
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
         self.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         self.tf_buffer = tf2_ros.Buffer()
         self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self._timer = rospy.Timer(rospy.Duration(SAMPLE_PERIOD_S), self._sample)
+
+    def _estimate_stamped(self) -> tuple[float, Pose2D] | None:
+        """The localization's latest map->base_footprint with its stamp (sim s), or None when tf has none."""
+        try:
+            tfm = self.tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        tr, q = tfm.transform.translation, tfm.transform.rotation
+        return tfm.header.stamp.to_sec(), Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
 
     def estimate(self) -> Pose2D | None:
         """The localization's latest map->base_footprint, or None when tf has none."""
-        try:
-            t = self.tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0)).transform
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
-            return None
-        q = t.rotation
-        return Pose2D(t.translation.x, t.translation.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        stamped = self._estimate_stamped()
+        return stamped[1] if stamped else None
 
     def _on_truth(self, msg: Odometry) -> None:
+        p = msg.pose.pose
+        yaw = yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
         with self._lock:
             self.truth = msg
+            self._history.append((msg.header.stamp.to_sec(), p.position.x, p.position.y, yaw))
+
+    def _sample(self, _event: rospy.timer.TimerEvent) -> None:
+        """One trajectory sample: the estimate (tf, latest) and the truth at the estimate's stamp,
+        carried into the map frame (``map_in_world``)."""
+        stamped = self._estimate_stamped()
+        with self._lock:
+            history = list(self._history)
+        if not history:
+            return
+        t, estimate = (history[-1][0], None) if stamped is None else stamped  # no localization yet: truth alone
+        truth = pose_at(history, t)
+        if truth is None:
+            return
+        here = self.map_in_world.inverse().compose(Pose2D(*truth))   # world -> map frame
+        with self._lock:
+            if self._samples and t <= self._samples[-1][0]:
+                return          # nothing new (the sim is paused or the tf is stale)
+            self._samples.append((t, (here.x, here.y, here.yaw),
+                                  None if estimate is None else (estimate.x, estimate.y, estimate.yaw)))
+
+    def trajectory(self, map_file: str) -> dict:
+        """The route's record so far (JSON-ready): samples, legs with plans, and the map they are drawn on.
+
+        ``samples``: ``t`` (sim s), ``truth`` and ``estimate`` as [x m, y m, yaw rad] in the map
+        frame (``estimate`` null before localization is up); ``legs``: name, goal [x, y, yaw],
+        ``t_start``/``t_end`` (sim s), ``plan`` [[x, y], ...] (m) from the leg's start.
+        """
+        with self._lock:
+            samples, legs = list(self._samples), [dict(leg) for leg in self._legs]
+
+        def r(v):
+            return None if v is None else [round(float(a), 4) for a in v]
+        return {
+            "map_file": str(map_file),
+            "frame": "map",
+            "estimate_source": "tf map -> base_footprint, as move_base sees it",
+            "truth_source": "ground_truth/odom (simulator oracle), carried into the map frame",
+            "map_in_world": [self.map_in_world.x, self.map_in_world.y, self.map_in_world.yaw],
+            "period_s": SAMPLE_PERIOD_S,
+            "samples": {"t": [round(s[0], 3) for s in samples], "truth": [r(s[1]) for s in samples],
+                        "estimate": [r(s[2]) for s in samples]},
+            "legs": legs,
+        }
 
     def _on_bumper(self, msg: Bool) -> None:
         with self._lock:
@@ -172,10 +238,13 @@ class DeliveryClient:
         else:
             state = GoalStatus.to_string(self.client.get_state())
             text = self.client.get_goal_status_text()
-        seconds = (rospy.Time.now() - t0).to_sec()
+        t1 = rospy.Time.now()
+        seconds = (t1 - t0).to_sec()
         with self._lock:
             p = self._truth_pose()
             bumps = self.bumps - bumps0
+            self._legs.append({"name": name, "goal": [x, y, yaw], "t_start": round(t0.to_sec(), 3),
+                               "t_end": round(t1.to_sec(), 3), "plan": np.round(pts, 3).tolist()})
         est = self.estimate()
         loc = self.map_in_world.compose(est).distance(p) if est else float("nan")
         target = self.map_in_world.compose(Pose2D(x, y, yaw))   # the goal in the world frame
@@ -184,3 +253,34 @@ class DeliveryClient:
         return Leg(name=name, ok=state == "SUCCEEDED", state=state, text=text, planned_m=planned,
                    seconds=seconds, limit_s=limit, xy_error=xy, yaw_error=dyaw, bumps=bumps,
                    loc_error=loc, estimate=(est.x, est.y, est.yaw) if est else None, truth=(p.x, p.y, p.yaw))
+
+
+def launch_map_file(roslaunch_cmd: list[str]) -> str:
+    """The map YAML the map_server of a ``roslaunch [--opts] PKG FILE arg:=value ...`` command serves
+    (its launch default included), resolved by roslaunch's own loader; "" if no map_server in it."""
+    import roslaunch.config
+    import roslaunch.rlutil
+
+    words = [w for w in roslaunch_cmd[1:] if not w.startswith("--")]
+    launch_args = [w for w in words if ":=" in w]
+    try:
+        path = roslaunch.rlutil.resolve_launch_arguments([w for w in words if ":=" not in w])[0]
+        config = roslaunch.config.load_config_default([(path, launch_args)], None, verbose=False)
+    except roslaunch.core.RLException as exc:
+        rospy.logwarn("cannot tell the map file of %s: %s", " ".join(roslaunch_cmd), exc)
+        return ""
+    return next((n.args.split()[0] for n in config.nodes if n.type == "map_server" and n.args.strip()), "")
+
+
+def save_route_report(trajectory: dict, out_dir: Path) -> list[str]:
+    """Write ``trajectory.json`` and the plots (tools/plots.py) into ``out_dir`` (next to delivery.json);
+    one line per file written, or the reason the plots could not be drawn."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / "trajectory.json"
+    path.write_text(json.dumps(trajectory, separators=(",", ":")) + "\n")
+    lines = [f"trajectory: {path} ({len(trajectory['samples']['t'])} samples)"]
+    try:
+        lines += [f"plot: {p}" for p in write_plots(out_dir)]
+    except PlotError as exc:
+        lines.append(f"plots NOT written: {exc}")
+    return lines

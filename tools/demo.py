@@ -12,7 +12,9 @@ final ground-truth error) and a final ``delivered N/9 tables in T s``.
 A table counts as delivered when move_base reports SUCCEEDED and the
 simulator's ground truth is within 0.05 m / 0.05 rad of the table pose.
 Exit code 0 only when all nine were delivered; nothing is left running,
-Ctrl-C included.  Results also go to build/demo/delivery.json.
+Ctrl-C included.  Results also go to build/demo/delivery.json, the route (ground truth,
+localization estimate, plans) to build/demo/trajectory.json, and its plots to
+build/demo/*.png (tools/plots.py).
 
 Environment: CHEFBOT_DEMO_RTF (sim speed cap, default 1.0; 0 = as fast as
 the machine goes), CHEFBOT_DEMO_TABLES (comma-separated subset, e.g. table_1,table_5),
@@ -136,7 +138,7 @@ def main() -> int:
         import rospy
 
         sys.path.insert(0, str(ROOT / "tools"))
-        from delivery import DeliveryClient
+        from delivery import DeliveryClient, launch_map_file, save_route_report
 
         names = [n for n in tables if n.startswith("table")]
         subset = os.environ.get("CHEFBOT_DEMO_TABLES")
@@ -192,11 +194,14 @@ def main() -> int:
         wall_s = time.monotonic() - t0_wall
         delivered = sum(1 for leg in legs if leg.ok and leg.name != "home")
         home = next((leg for leg in legs if leg.name == "home"), None)
+        trajectory = client.trajectory(launch_map_file(launch_cmd))
         rospy.signal_shutdown("demo done")
     LOG_DIR.mkdir(parents=True, exist_ok=True)
     (LOG_DIR / "delivery.json").write_text(json.dumps(
         {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s,
          "legs": [leg.as_dict() for leg in legs]}, indent=2) + "\n")
+    for line in save_route_report(trajectory, LOG_DIR):   # trajectory.json + the PNG plots
+        say(line)
     say(f"back home: {'yes' if home and home.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
     say(f"delivered {delivered}/{len(names)} tables in {sim_s:.1f} s (sim time; {wall_s:.1f} s wall)")
     return 0 if delivered == len(names) else 1

@@ -9,11 +9,14 @@ the time-optimal limit along the plan (chefbot_navigation.time_limit.profile_lim
 (the end-to-end issue's).
 The run's sim-seconds per wall-second is the full-stack real-time factor
 (goal ≥ 1.0; Gazebo 7 with the book's Kinect world: 0.22).
+The demo's plots (trajectory over the map, localization error, leg times vs limit;
+tools/plots.py) are copied to bench-results/ next to the figures.
 """
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -27,11 +30,18 @@ def run(quick: bool = False) -> list[dict]:
         env["CHEFBOT_DEMO_TABLES"] = "table_1,table_5"
     result = ROOT / "build" / "demo" / "delivery.json"
     result.unlink(missing_ok=True)
+    for png in result.parent.glob("*.png"):   # no stale plots from an earlier run
+        png.unlink()
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
                           text=True, timeout=1800, start_new_session=True)
     if not result.exists():
         raise RuntimeError(f"demo produced no results (exit {proc.returncode}):\n{proc.stdout[-3000:]}")
     data = json.loads(result.read_text())
+    out = ROOT / "bench-results"
+    out.mkdir(exist_ok=True)
+    for png in sorted(result.parent.glob("*.png")):
+        shutil.copy2(png, out / png.name)
+        print(f"[bench] plot: {(out / png.name).relative_to(ROOT)}", flush=True)
     rows = []
     for leg in data["legs"]:
         limit = leg["limit_s"]
