@@ -110,8 +110,11 @@ class DiffOdometry:
         self._t_last: float | None = None
         self._yaw_imu: float | None = None
         self._yaw_imu_t: float | None = None       # when the latest IMU yaw arrived (s)
-        self._yaw_imu_base: float | None = None
-        self.imu_used = False                      # the last step's heading came from the IMU
+        self._imu_seq = 0                          # IMU samples received
+        self._yaw_imu_base: float | None = None    # the IMU yaw the heading is anchored to ...
+        self._imu_base_seq = 0                     # ... which sample that was
+        self._wheel_since_imu = 0.0                # wheel turning (rad) added since that sample
+        self.imu_used = False                      # the last step's heading was anchored to the IMU
         self.x = self.y = self.theta = 0.0
         self.v = self.w = 0.0
         self.resets = 0
@@ -130,6 +133,7 @@ class DiffOdometry:
         ``t`` None: always fresh (a caller that checks the age itself)."""
         self._yaw_imu = yaw
         self._yaw_imu_t = t
+        self._imu_seq += 1
 
     def _imu_fresh(self, t: float) -> bool:
         return self._yaw_imu is not None and (self._yaw_imu_t is None or
@@ -137,7 +141,12 @@ class DiffOdometry:
 
     def _rebaseline(self, t: float) -> None:
         self._base_l, self._base_r = self._pos_l, self._pos_r
+        self._anchor_imu(t)
+
+    def _anchor_imu(self, t: float) -> None:
+        """Anchor the heading to the current IMU sample (none if it is stale)."""
         self._yaw_imu_base = self._yaw_imu if self._imu_fresh(t) else None
+        self._imu_base_seq, self._wheel_since_imu = self._imu_seq, 0.0
 
     def update(self, t: float) -> OdometryState | None:
         """Integrate the travel since the last call; ``t`` in seconds.
@@ -171,25 +180,32 @@ class DiffOdometry:
             return self.state(t)
 
         d = 0.5 * (dl + dr)
-        # an IMU that fell silent (or just came back) gives no heading change for this step: the
-        # wheels do, and the next step starts from the IMU's current yaw
+        wheel_dtheta = (dr - dl) / cfg.base_width
+        # Heading from the IMU: on a new sample, the IMU's turn since the anchor sample minus what
+        # the wheels already added in between; between samples the wheels bridge (and are corrected
+        # by the next sample), so a late or lost sample loses no turning.  A stale IMU (silent for
+        # imu_timeout) hands the heading to the wheels until a sample re-anchors it.
         self.imu_used = self._imu_fresh(t) and self._yaw_imu_base is not None
-        if self.imu_used:
-            dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base)
-            # Split the IMU heading change into wheel travels so the arc
-            # formula stays the single source of truth.
-            half = 0.5 * dtheta * cfg.base_width
-            dl_eff, dr_eff = d - half, d + half
+        if self.imu_used and self._imu_seq != self._imu_base_seq:
+            dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base) - self._wheel_since_imu
+            self._yaw_imu_base, self._imu_base_seq, self._wheel_since_imu = self._yaw_imu, self._imu_seq, 0.0
+        elif self.imu_used:
+            dtheta = wheel_dtheta
+            self._wheel_since_imu += wheel_dtheta
         else:
-            dtheta = (dr - dl) / cfg.base_width
-            dl_eff, dr_eff = dl, dr
+            dtheta = wheel_dtheta
+            self._anchor_imu(t)
+        # Split the heading change into wheel travels so the arc formula stays the single source
+        # of truth.
+        half = 0.5 * dtheta * cfg.base_width
+        dl_eff, dr_eff = d - half, d + half
 
         self._propagate_cov(d, dtheta, dl, dr)
         self.x, self.y, th = integrate_arc(self.x, self.y, self.theta, dl_eff, dr_eff, cfg.base_width)
         self.theta = wrap_angle(th)
         self.v = d / dt
         self.w = dtheta / dt
-        self._rebaseline(t)
+        self._base_l, self._base_r = self._pos_l, self._pos_r
         self._t_last = t
         return self.state(t)
 

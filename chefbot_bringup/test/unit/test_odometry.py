@@ -128,20 +128,34 @@ def test_a_silent_imu_hands_the_heading_back_to_the_wheels():
     odo.update(0.1)
     assert odo.imu_used and odo.theta == pytest.approx(0.2)
     # the IMU falls silent at 0.1 s while the wheels turn the robot in place at 0.5 rad/s for 1 s:
-    # for imu_timeout (0.25 s: the steps ending at 0.2 and 0.3 s) the old yaw still holds the
-    # heading, then the wheels' turning counts (0.3 .. 1.1 s: 0.4 rad)
+    # the wheels bridge the gap, first while waiting for the next sample, then (after imu_timeout)
+    # as the heading source: no turning is lost
     w = odo.cfg.base_width / 2 * 0.5
     _, left, right = drive(odo, -w, w, 1.0, t0=0.1)
     assert not odo.imu_used
-    assert odo.theta == pytest.approx(0.2 + 0.4, abs=0.01)
+    assert odo.theta == pytest.approx(0.2 + 0.5, abs=0.01)
     # it comes back with a yaw that says nothing of the time it was away: no jump
     odo.set_imu_yaw(3.0, t=1.2)
     odo.set_ticks(left, right)
     odo.update(1.2)
-    assert odo.theta == pytest.approx(0.6, abs=0.01)
+    assert odo.theta == pytest.approx(0.7, abs=0.01)
     odo.set_imu_yaw(3.1, t=1.3)
     odo.update(1.3)
-    assert odo.imu_used and odo.theta == pytest.approx(0.7, abs=0.01)
+    assert odo.imu_used and odo.theta == pytest.approx(0.8, abs=0.01)
+
+
+def test_a_late_imu_sample_corrects_the_wheels_that_bridged_it():
+    odo = started()
+    odo.set_imu_yaw(0.0, t=0.0)
+    odo.update(0.0)
+    # the wheels say 0.05 rad per 0.1 s, but slip: the IMU (truth) says 0.04
+    w = odo.cfg.base_width / 2 * 0.5
+    t, left, right = drive(odo, -w, w, 0.2)          # two steps, no IMU sample yet
+    assert odo.theta == pytest.approx(0.1, abs=1e-3)
+    odo.set_imu_yaw(0.08, t=t)                       # the late sample: 0.08 rad since the anchor
+    odo.set_ticks(left, right)
+    odo.update(t + 0.1)
+    assert odo.imu_used and odo.theta == pytest.approx(0.08, abs=1e-6)
 
 
 def test_covariance_grows_with_distance_not_time():
