@@ -18,6 +18,7 @@ from chefbot_navigation.exploration import (
     find_frontiers,
     frontier_mask,
     known_area,
+    line_of_sight,
     open_unknown,
     record_visit,
     scan_frontiers,
@@ -183,3 +184,19 @@ def test_new_params_are_checked():
         ExploreNodeParams(stall_timeout=0.0)
     with pytest.raises(ValueError, match="progress_area"):
         ExploreNodeParams(progress_area=float("nan"))
+
+
+def test_goal_sees_its_frontier_from_view_distance():
+    """A 1 m screen 0.45 m in front of the frontier's middle: the goal straight in front would see only the
+    screen; the chosen one keeps ~view_distance, looks past the screen into the unknown."""
+    occ = _room(60)
+    occ.data[30:50, 50] = OCCUPIED                           # x 2.5, y 1.5..2.5
+    cfg = ExploreConfig(view_distance=1.0, approach=1.5)
+    f = find_frontiers(occ, Pose2D(1.0, 2.0, 0.0), cfg)[0]
+    d = np.hypot(f.goal.x - f.centroid[0], f.goal.y - f.centroid[1])
+    assert d == pytest.approx(1.0, abs=0.15)
+    assert line_of_sight(occ, np.array([f.goal.x]), np.array([f.goal.y]), *f.centroid)[0]
+    assert f.goal.x < f.centroid[0] and abs(f.goal.yaw) < 1.4      # from the known side, facing +x
+    # line_of_sight itself: through the screen is blocked, beside it is clear
+    assert not line_of_sight(occ, np.array([1.0]), np.array([2.0]), 3.0, 2.0)[0]
+    assert line_of_sight(occ, np.array([1.0]), np.array([1.0]), 2.9, 1.0)[0]
