@@ -67,11 +67,13 @@ class SlamWorkflowTest(unittest.TestCase):
         print(f"[figure] exploration {took:.0f} s sim, complete: {self.done[-1]}; matched {100 * q.matched:.1f} %, "
               f"false occupied {100 * q.false_occupied:.2f} %, reachable free area mapped {100 * q.coverage:.1f} %",
               flush=True)
+        # issue 17: >= 95 % of the reachable free area within 10 min of sim time (measured 326-452 s, 98-99 %);
+        # matched/false-occupied looser than the benchmark goals (measured 92.6-96.6 % / 0.1-1.8 %)
         self.assertTrue(self.done[-1], "exploration did not complete (frontiers left at max_duration)")
-        self.assertLess(took, 900.0)
-        self.assertGreater(q.coverage, 0.90)
-        self.assertGreater(q.matched, 0.85)
-        self.assertLess(q.false_occupied, 0.05)
+        self.assertLess(took, 600.0)
+        self.assertGreater(q.coverage, 0.95)
+        self.assertGreater(q.matched, 0.88)
+        self.assertLess(q.false_occupied, 0.03)
         # 2. map_saver -> files -> map_server gives the same grid
         prefix = os.path.join(self.tmp, "hotel")
         r = subprocess.run(["rosrun", PKG, "map_saver", "-f", prefix], capture_output=True, text=True, timeout=120)
