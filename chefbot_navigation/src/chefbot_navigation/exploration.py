@@ -98,7 +98,8 @@ class ExploreNodeParams:
 
 @dataclass
 class Frontier:
-    """A frontier group: centroid (m), length (m), goal pose, travel cost (m), cells (N x 2 world m)."""
+    """A frontier group: aim point (m; its centroid, or with ``view_distance`` > 0 the frontier cell nearest
+    the centroid), length (m), goal pose, travel cost (m), cells (N x 2 world m)."""
 
     centroid: tuple[float, float]
     length: float
