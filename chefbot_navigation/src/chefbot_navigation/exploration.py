@@ -84,6 +84,7 @@ class ExploreNodeParams:
     progress_area: float = 0.5          # m^2 of new known area that count as progress
     stall_timeout: float = 150.0        # s (sim): the run stops when the known area grows less than ...
     stall_area: float = 2.0             # m^2 in stall_timeout
+    max_stuck: int = 3                  # goals in a row without the robot moving progress_distance: stop (not done)
 
     def __post_init__(self) -> None:
         if self.mode not in ("frontier", "waypoints"):
@@ -91,6 +92,8 @@ class ExploreNodeParams:
         for name in ("goal_timeout", "max_duration", "recheck_period", "progress_timeout", "stall_timeout"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0 s, got {getattr(self, name)}")
+        if self.max_stuck < 1:
+            raise ValueError(f"max_stuck must be >= 1, got {self.max_stuck}")
         for name in ("spin_speed", "progress_distance", "progress_area", "stall_area"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
@@ -346,12 +349,15 @@ def final_line(occ: OccupancyMap, scan: FrontierScan, blacklist: Blacklist, elap
 
 
 def stop_reason(scan: FrontierScan, elapsed: float, known: float, stall: ProgressWatch,
-                p: ExploreNodeParams) -> tuple[str, bool] | None:
+                p: ExploreNodeParams, stuck: int = 0) -> tuple[str, bool] | None:
     """Why the run ends now, and whether that counts as done (True) or given up (False); None: go on.
 
-    ``elapsed`` s since the start, ``known`` m^2; ``stall`` watches the known area over ``stall_timeout``."""
+    ``elapsed`` s since the start, ``known`` m^2; ``stall`` watches the known area over ``stall_timeout``;
+    ``stuck``: goals in a row that ended "stuck" (see :func:`goal_outcome`)."""
     if p.mode == "waypoints":
         return "route driven", True
+    if stuck >= p.max_stuck:
+        return f"robot stuck: {stuck} goals in a row without moving {p.progress_distance:g} m", False
     if not scan.frontiers:
         return "no reachable frontier left", True
     if stall.update(elapsed, known):
@@ -361,12 +367,19 @@ def stop_reason(scan: FrontierScan, elapsed: float, known: float, stall: Progres
     return None
 
 
+def goal_outcome(outcome: str, moved: float, p: ExploreNodeParams) -> str:
+    """A goal that timed out or made no progress while the robot moved less than ``progress_distance`` m
+    (``moved``: farthest distance from where the goal started) is "stuck": the robot is wedged or a
+    phantom obstacle blocks it, which says nothing about the frontier.  Other outcomes pass unchanged."""
+    return "stuck" if outcome in ("no progress", "timeout") and moved < p.progress_distance else outcome
+
+
 def record_visit(blacklist: Blacklist, frontier: Frontier, outcome: str) -> bool:
-    """Give ``frontier`` up after a goal ``outcome`` (succeeded, cleared, failed, timeout, no progress).
+    """Give ``frontier`` up after a goal ``outcome`` (succeeded, cleared, stuck, failed, timeout, no progress).
 
     A reached goal (the look-around done) leaves what remains of its frontier unobservable from there;
-    ``cleared`` (mapped on the way) gives nothing up.  True when it was given up for a failure."""
-    if outcome == "cleared":
+    ``cleared`` (mapped on the way) and ``stuck`` give nothing up.  True when it was given up for a failure."""
+    if outcome in ("cleared", "stuck"):
         return False
     blacklist.add(frontier, "visited" if outcome == "succeeded" else outcome)
     return outcome != "succeeded"

@@ -17,6 +17,7 @@ from chefbot_navigation.exploration import (
     final_line,
     find_frontiers,
     frontier_mask,
+    goal_outcome,
     known_area,
     line_of_sight,
     open_unknown,
@@ -200,3 +201,24 @@ def test_goal_sees_its_frontier_from_view_distance():
     # line_of_sight itself: through the screen is blocked, beside it is clear
     assert not line_of_sight(occ, np.array([1.0]), np.array([2.0]), 3.0, 2.0)[0]
     assert line_of_sight(occ, np.array([1.0]), np.array([1.0]), 2.9, 1.0)[0]
+
+
+def test_a_stuck_robot_gives_no_frontier_up_and_stops_the_run_after_max_stuck():
+    """No progress while the robot did not move (wedged, or a phantom obstacle ahead) is the robot's
+    problem: the frontier stays; max_stuck such goals in a row end the run as not done."""
+    p = ExploreNodeParams(max_stuck=3, progress_distance=0.25)
+    assert goal_outcome("no progress", 0.1, p) == "stuck" and goal_outcome("timeout", 0.0, p) == "stuck"
+    assert goal_outcome("no progress", 0.6, p) == "no progress"      # it drove and still got nowhere
+    assert goal_outcome("failed", 0.0, p) == "failed"                # move_base found no path: the frontier
+    assert goal_outcome("succeeded", 0.0, p) == "succeeded"
+    occ = _room(60)
+    cfg = ExploreConfig()
+    bl = Blacklist(cfg.blacklist_radius, cfg.blacklist_share)
+    sc = scan_frontiers(occ, Pose2D(1.0, 2.0, 0.0), cfg, bl)
+    assert record_visit(bl, sc.frontiers[0], "stuck") is False and len(bl) == 0
+    stall = ProgressWatch(1e9, 0.0)
+    assert stop_reason(sc, 10.0, 50.0, stall, p, stuck=2) is None
+    reason, done = stop_reason(sc, 12.0, 50.0, stall, p, stuck=3)
+    assert not done and "robot stuck" in reason
+    with pytest.raises(ValueError, match="max_stuck"):
+        ExploreNodeParams(max_stuck=0)
