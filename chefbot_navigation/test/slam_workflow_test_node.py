@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """rostest node for manual/slam_workflow.test: explore -> map quality -> map_saver ->
-map_server -> (SLAM stopped) localization on the saved map -> three table deliveries."""
+map_server -> (SLAM stopped) amcl on the saved map, started at SLAM's last pose -> three table deliveries."""
 from __future__ import annotations
 
 import math
@@ -14,6 +14,7 @@ import actionlib
 import numpy as np
 import rospy
 import rostest
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
@@ -28,8 +29,6 @@ from chefbot_navigation.ros_io import msg_to_occupancy
 from chefbot_navigation.slam.metrics import map_quality
 
 PKG = "chefbot_navigation"
-# the localization started on the saved map; the lead switches this to amcl at merge
-LOCALIZATION = ["rosrun", PKG, "fake_localization", "__name:=fake_localization"]
 
 
 class SlamWorkflowTest(unittest.TestCase):
@@ -44,6 +43,8 @@ class SlamWorkflowTest(unittest.TestCase):
         rospy.Subscriber("map", OccupancyGrid, lambda m: cls.maps.append(m), queue_size=1)
         rospy.Subscriber("ground_truth/odom", Odometry, cls.on_truth, queue_size=5)
         cls.tmp = tempfile.mkdtemp(prefix="slam_workflow_")
+        cls.tf = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf)
 
     @classmethod
     def tearDownClass(cls) -> None:
@@ -66,17 +67,23 @@ class SlamWorkflowTest(unittest.TestCase):
         print(f"[figure] exploration {took:.0f} s sim, complete: {self.done[-1]}; matched {100 * q.matched:.1f} %, "
               f"false occupied {100 * q.false_occupied:.2f} %, reachable free area mapped {100 * q.coverage:.1f} %",
               flush=True)
+        # issue 17: >= 95 % of the reachable free area within 10 min of sim time (measured 326-452 s, 98-99 %);
+        # matched/false-occupied looser than the benchmark goals (measured 92.6-96.6 % / 0.1-1.8 %)
         self.assertTrue(self.done[-1], "exploration did not complete (frontiers left at max_duration)")
-        self.assertLess(took, 900.0)
-        self.assertGreater(q.coverage, 0.90)
-        self.assertGreater(q.matched, 0.85)
-        self.assertLess(q.false_occupied, 0.05)
+        self.assertLess(took, 600.0)
+        self.assertGreater(q.coverage, 0.95)
+        self.assertGreater(q.matched, 0.88)
+        self.assertLess(q.false_occupied, 0.03)
         # 2. map_saver -> files -> map_server gives the same grid
         prefix = os.path.join(self.tmp, "hotel")
         r = subprocess.run(["rosrun", PKG, "map_saver", "-f", prefix], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
         saved = msg_to_occupancy(self.maps[-1])
-        # 3. SLAM stops; map_server serves the saved map as `map`; localization on it
+        # 3. SLAM stops; map_server serves the saved map as `map`; amcl on it, started where SLAM last put
+        #    the robot (the saved map's frame is SLAM's map frame)
+        t = self.tf.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(10.0)).transform
+        start = (t.translation.x, t.translation.y,
+                 yaw_from_quaternion(t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w))
         subprocess.run(["rosnode", "kill", "/slam", "/explore"], capture_output=True, timeout=60)
         self.maps.clear()
         self.procs.append(subprocess.Popen(["rosrun", PKG, "map_server", f"{prefix}.yaml"]))
@@ -85,7 +92,9 @@ class SlamWorkflowTest(unittest.TestCase):
         self.assertEqual(served.data.shape, saved.data.shape)
         self.assertTrue(np.array_equal(served.data, load_map(f"{prefix}.yaml").data))
         self.assertGreater(np.mean(served.data == saved.data), 0.99)   # the map may have changed after saving
-        self.procs.append(subprocess.Popen(LOCALIZATION))
+        amcl = os.path.join(rospy.get_param("~launch_dir"), "includes", "amcl.launch.xml")
+        self.procs.append(subprocess.Popen(["roslaunch", amcl, f"initial_pose_x:={start[0]}",
+                                            f"initial_pose_y:={start[1]}", f"initial_pose_a:={start[2]}"]))
         # 4. deliveries on the saved map
         client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         self.assertTrue(client.wait_for_server(rospy.Duration(60.0)))
