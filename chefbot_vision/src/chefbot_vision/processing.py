@@ -74,6 +74,7 @@ def depth_view(depth: np.ndarray) -> np.ndarray:
         cv2.normalize(np.where(valid, d, 0.0).astype(np.float32), out, 0.0, 1.0, cv2.NORM_MINMAX,
                       mask=valid.astype(np.uint8))
         out[~valid] = 0.0
+        np.clip(out, 0.0, 1.0, out=out)   # NORM_MINMAX in float32 can undershoot 0 by ~1e-9
     return out
 
 

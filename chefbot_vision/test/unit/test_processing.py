@@ -62,6 +62,13 @@ def test_depth_view_normalises_and_survives_nan():
     assert depth_view_mono8(v).tolist() == [[0, 128, 0], [255, 0, 0]]
 
 
+def test_depth_view_stays_within_0_1():
+    # cv2's float32 NORM_MINMAX maps this frame's nearest reading to -2.3e-9 (seen in camera.test)
+    d = np.random.default_rng(0).uniform(0.5, 8.0, (2, 4, 4)).astype(np.float32)[1]
+    v = depth_view(d)
+    assert v.min() == 0.0 and v.max() == pytest.approx(1.0, abs=1e-6)
+
+
 @pytest.mark.parametrize("bad, what", [
     (np.zeros((0, 4), np.float32), "empty"), (np.zeros((4, 4, 3), np.float32), "channel"),
     (np.array([["a"]]), "numeric")])
