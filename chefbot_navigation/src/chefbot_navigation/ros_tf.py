@@ -9,7 +9,7 @@ import rospy
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_io import transform_to_pose2d
-from chefbot_navigation.ros_util import TF_ERRORS, PlanarTf
+from chefbot_navigation.ros_util import TF_ERRORS, PlanarTf, lookup_transform_wall
 
 
 class TfPoses(PlanarTf):
@@ -45,7 +45,7 @@ class TfPoses(PlanarTf):
         """Pose of ``frame`` in the base frame (looked up once, then cached); None (error logged) if unknown."""
         if frame not in self.sensors:
             try:
-                t = self.buffer.lookup_transform(self.base_frame, frame, rospy.Time(0), rospy.Duration(0.5))
+                t = lookup_transform_wall(self.buffer, self.base_frame, frame, rospy.Time(0), 0.5)
             except TF_ERRORS as exc:
                 rospy.logerr_throttle_identical(5.0, f"scan frame '{frame}' unknown to tf (no "
                                                      f"{self.base_frame}->{frame}): {exc}")

@@ -95,6 +95,19 @@ class Diagnostics:
         self.pub.publish(msg)
 
 
+def lookup_transform_wall(buffer: tf2_ros.Buffer, target: str, source: str, stamp: rospy.Time,
+                          timeout_s: float):
+    """``buffer.lookup_transform(target, source, stamp)``, waiting up to ``timeout_s`` of WALL time
+    for the transform to arrive.  tf2_ros's own timeout counts ROS time: with a stopped /clock (a
+    bag that ended, a paused simulation) it never runs out and the caller hangs.  Raises tf2's
+    exceptions as lookup_transform does."""
+    deadline = time.monotonic() + timeout_s
+    while not buffer.can_transform(target, source, stamp) and time.monotonic() < deadline \
+            and not rospy.is_shutdown():
+        time.sleep(0.005)
+    return buffer.lookup_transform(target, source, stamp)
+
+
 def wait_for_action_server(client, timeout_s: float) -> bool:
     """Wait up to ``timeout_s`` seconds of WALL time until ``client`` (a SimpleActionClient) sees its
     server: a status message arrived and the server subscribes to our goals.  False on timeout or
