@@ -162,6 +162,7 @@ class ProgressWatch:
         self.best = -math.inf
 
     def reset(self, t: float, value: float) -> None:
+        """Start watching anew from ``value`` at time ``t`` (s)."""
         self.t_best, self.best = t, value
 
     def update(self, t: float, value: float) -> bool:
