@@ -19,6 +19,7 @@ import numpy as np
 import rosgraph
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -86,6 +87,11 @@ class FirmwareDrive(unittest.TestCase):
         r.wait_for(lambda: r.now() > 0.5 and r.between("gt", 0.0), "clock and ground truth")
         r.wait_for(lambda: bool(r.between("odom", 0.0)), "odom from diff_tf (launchpad_node connected)")
         r.wait_for(lambda: r.pub.get_num_connections() > 0, "twist_to_motors subscribed to cmd_vel")
+        # the cliff guard holds forward motion until all three cliff sensors have reported
+        guard_ok = []
+        rospy.Subscriber("diagnostics", DiagnosticArray, lambda m: guard_ok.extend(
+            s for s in m.status if s.name == "chefbot: cliff guard" and s.level == DiagnosticStatus.OK))
+        r.wait_for(lambda: bool(guard_ok), "the cliff guard to allow forward motion")
 
     def test_0_params_and_no_competing_odom(self) -> None:
         link = rospy.get_param("~pty_link")

@@ -11,6 +11,7 @@ import unittest
 import numpy as np
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Pose2D, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -57,6 +58,11 @@ class PluginDrive(unittest.TestCase):
         cls.r = Recorder()
         cls.wall_x = rospy.get_param("~wall_x")
         cls.r.wait_for(lambda: cls.r.now() > 0.5 and cls.r.between("gt", 0.0, math.inf), "clock and ground truth")
+        # the cliff guard holds forward motion until all three cliff sensors have reported
+        guard_ok = []
+        rospy.Subscriber("diagnostics", DiagnosticArray, lambda m: guard_ok.extend(
+            s for s in m.status if s.name == "chefbot: cliff guard" and s.level == DiagnosticStatus.OK))
+        cls.r.wait_for(lambda: bool(guard_ok), "the cliff guard to allow forward motion")
 
     def teleport(self, x: float) -> float:
         t0 = self.r.now()
