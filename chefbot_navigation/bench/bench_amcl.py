@@ -188,6 +188,38 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
         sim.close()
 
 
+def _turn_until_localized(rig: SimRig, amcl: Amcl, limit: float, kidnap_after: float | None = None) -> float:
+    """Turn in place at 0.6 rad/s feeding every depth frame to ``amcl``; sim s from the start (or,
+    with ``kidnap_after``, from the 3 m teleport done that many sim s in) until amcl's error is within
+    0.25 m / 0.25 rad and stays there for 2 s; inf if not within ``limit`` s."""
+    from chefbot_common.geometry import Pose2D as WorldPose
+    sim, ok_since = rig.sim, None
+    t_ref = sim.time if kidnap_after is None else None      # when the clock of the figure starts
+    while t_ref is None or sim.time - t_ref < limit:
+        if t_ref is None and sim.time > kidnap_after:
+            gt = rig.truth()
+            sim.teleport(WorldPose(gt.x, gt.y + 3.0, gt.yaw))
+            t_ref = sim.time
+        sim.set_cmd_vel(0.0, 0.6)
+        for e in sim.step(6):
+            if e.kind == "odom":
+                rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
+            elif e.kind == "depth":
+                ranges, angles = rig.scan(e.data)
+                try:
+                    amcl.update(rig.odom, ranges, angles, 0.45, 8.0, rig.laser, e.stamp)
+                except ValueError:
+                    pass
+                if t_ref is None or amcl.map_T_odom is None or amcl.updates < 2:
+                    continue
+                est, gt = amcl.map_T_odom.compose(rig.odom), rig.truth()
+                ok = est.distance(gt) <= 0.25 and abs(wrap_angle(est.yaw - gt.yaw)) <= 0.25
+                ok_since = (ok_since if ok_since is not None else e.stamp) if ok else None
+                if ok_since is not None and e.stamp - ok_since >= 2.0:
+                    return ok_since - t_ref
+    return math.inf
+
+
 def global_convergence(seed: int = 0, limit: float = 60.0) -> float:
     """Sim s from global_localization (robot at home, turning in place at 0.6 rad/s) until amcl's error
     is within 0.25 m / 0.25 rad and stays there for 2 s (inf if not within ``limit``)."""
@@ -195,68 +227,23 @@ def global_convergence(seed: int = 0, limit: float = 60.0) -> float:
     amcl = Amcl(amcl_config(seed=seed))
     amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
     amcl.global_localization()
-    sim, ok_since = rig.sim, None
-    t0 = sim.time
     try:
-        while sim.time < limit:
-            sim.set_cmd_vel(0.0, 0.6)
-            for e in sim.step(6):
-                if e.kind == "odom":
-                    rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
-                elif e.kind == "depth":
-                    ranges, angles = rig.scan(e.data)
-                    try:
-                        amcl.update(rig.odom, ranges, angles, 0.45, 8.0, rig.laser, e.stamp)
-                    except ValueError:
-                        pass
-                    if amcl.map_T_odom is None or amcl.updates < 2:
-                        continue
-                    est, gt = amcl.map_T_odom.compose(rig.odom), rig.truth()
-                    ok = est.distance(gt) <= 0.25 and abs(wrap_angle(est.yaw - gt.yaw)) <= 0.25
-                    ok_since = (ok_since if ok_since is not None else e.stamp) if ok else None
-                    if ok_since is not None and e.stamp - ok_since >= 2.0:
-                        return ok_since - t0
-        return math.inf
+        return _turn_until_localized(rig, amcl, limit)
     finally:
-        sim.close()
+        rig.sim.close()
 
 
 def kidnap_turning(seed: int = 0, limit: float = 60.0, overrides: dict | None = None) -> float:
     """Sim s to relocalize (0.25 m / 0.25 rad, held 2 s) after a 3 m kidnap at home while turning
     in place at 0.6 rad/s (as amcl_sim.test does); inf if not within ``limit``."""
-    from chefbot_common.geometry import Pose2D as WorldPose
-    home = Pose2D(0.0, 0.0, 0.0)
-    rig = SimRig(home, seed)
+    rig = SimRig(Pose2D(0.0, 0.0, 0.0), seed)
     amcl = Amcl(amcl_config(seed=seed, initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01,
                             **(overrides or {})))
     amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
-    sim, kidnapped_at, ok_since = rig.sim, None, None
     try:
-        while kidnapped_at is None or sim.time - kidnapped_at < limit:
-            if kidnapped_at is None and sim.time > 8.0:      # tracking for 8 s first
-                gt = rig.truth()
-                sim.teleport(WorldPose(gt.x, gt.y + 3.0, gt.yaw))
-                kidnapped_at = sim.time
-            sim.set_cmd_vel(0.0, 0.6)
-            for e in sim.step(6):
-                if e.kind == "odom":
-                    rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
-                elif e.kind == "depth":
-                    ranges, angles = rig.scan(e.data)
-                    try:
-                        amcl.update(rig.odom, ranges, angles, 0.45, 8.0, rig.laser, e.stamp)
-                    except ValueError:
-                        pass
-                    if kidnapped_at is None or amcl.map_T_odom is None:
-                        continue
-                    est, gt = amcl.map_T_odom.compose(rig.odom), rig.truth()
-                    ok = est.distance(gt) <= 0.25 and abs(wrap_angle(est.yaw - gt.yaw)) <= 0.25
-                    ok_since = (ok_since if ok_since is not None else e.stamp) if ok else None
-                    if ok_since is not None and e.stamp - ok_since >= 2.0:
-                        return ok_since - kidnapped_at
-        return math.inf
+        return _turn_until_localized(rig, amcl, limit, kidnap_after=8.0)   # tracking for 8 s first
     finally:
-        sim.close()
+        rig.sim.close()
 
 
 def run(quick: bool = False) -> list[dict]:
