@@ -158,10 +158,11 @@ def footprint_from_urdf(urdf_xml: str, base: str = "base_footprint", padding: fl
 
 
 def resolve_footprint(spec: str, padding: float, robot_radius: float,
-                      urdf_xml: str | None) -> tuple[Footprint, str]:
+                      urdf_xml: str | None, base: str = "base_footprint") -> tuple[Footprint, str]:
     """The footprint a ``costmap/footprint`` param asks for, and a line saying where it came from.
 
-    ``urdf``: from ``urdf_xml`` (the ``robot_description`` param); without one, the round
+    ``urdf``: from ``urdf_xml`` (the ``robot_description`` param) in its frame ``base`` (the
+    robot_base_frame, e.g. ``chefbot1/base_footprint`` with a frame prefix); without one, the round
     ``robot_radius`` with a note.  ``radius``: round.  ``[[x, y], ...]``: that polygon.
     ValueError names the problem.
     """
@@ -172,7 +173,7 @@ def resolve_footprint(spec: str, padding: float, robot_radius: float,
         if not urdf_xml:
             return (circle_footprint(robot_radius),
                     f"round, robot_radius {robot_radius:g} m (no robot_description to read the URDF from)")
-        fp = footprint_from_urdf(urdf_xml, padding=padding)
+        fp = footprint_from_urdf(urdf_xml, base, padding=padding)
         return fp, f"URDF collision bodies + {padding:g} m padding"
     if spec.startswith("["):
         import yaml

@@ -32,13 +32,14 @@ from chefbot_navigation.ros_io import occupancy_to_msg, path_to_msg, pose2d_to_p
 from chefbot_navigation.ros_util import PlanarTf, periodic
 
 
-def load_footprint(cost_p: Any) -> Footprint:
-    """The robot's footprint from the costmap params (or the URDF on ``robot_description``), logged;
-    ParamError naming the problem if it is unusable."""
+def load_footprint(cost_p: Any, base_frame: str = "base_footprint") -> Footprint:
+    """The robot's footprint from the costmap params (or the URDF on ``robot_description``, in
+    ``base_frame``: the robot_base_frame, prefixed in a namespace), logged; ParamError naming the
+    problem if it is unusable."""
     try:
         urdf = rospy.get_param("robot_description", "")
         footprint, source = resolve_footprint(cost_p.footprint, cost_p.footprint_padding, cost_p.robot_radius,
-                                              urdf)
+                                              urdf, base_frame)
     except ValueError as exc:
         raise ParamError(f"footprint: {exc}") from None
     rospy.loginfo("move_base: footprint from %s: inscribed radius %.3f m, circumscribed %.3f m",

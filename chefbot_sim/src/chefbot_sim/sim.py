@@ -538,9 +538,11 @@ class Simulator:
         self.cliff_frames = []   # what each Range is stamped with: the sensor's URDF frame
         for c in cliffs:
             self.bullet.frame(c.parent)
+            # the sensor's frame carries its parent's tf prefix (xacro frame_prefix, e.g. 'chefbot1/')
+            frame = c.parent[:c.parent.rfind("/") + 1] + f"{c.name}_link"
             try:
-                self.bullet.frame(f"{c.name}_link")
-                self.cliff_frames.append(f"{c.name}_link")
+                self.bullet.frame(frame)
+                self.cliff_frames.append(frame)
             except BulletError:   # a model without the frames (older URDF): the sensor's name
                 self.cliff_frames.append(c.name)
         self._cliff_parents = sorted({c.parent for c in cliffs})
