@@ -138,3 +138,17 @@ def test_launch_file_nodes(launch: str, args: list[str], nodes: set[str], tmp_pa
     rc, out = roslaunch(["--nodes", "chefbot_description", launch, *args], tmp_path)
     assert rc == 0, out
     assert set(out.split()) == nodes
+
+
+def test_frame_prefix_prefixes_every_link_and_sim_frame_not_joints() -> None:
+    """xacro frame_prefix (a robot in a namespace): links and the <chefbot_sim> frames carry it;
+    joints keep their names; an empty prefix is the default model byte for byte."""
+    plain, prefixed = model.expand_xacro(), model.expand_xacro(args={"frame_prefix": "chefbot1/"})
+    assert model.expand_xacro(args={"frame_prefix": ""}) == plain
+    a, b = model.parse_urdf(plain), model.parse_urdf(prefixed)
+    assert set(b.links) == {"chefbot1/" + n for n in a.links}
+    assert set(b.joints) == set(a.joints)
+    sim = model.load_sim_params(prefixed)
+    assert (sim.drive.odom_frame, sim.drive.base_frame) == ("chefbot1/odom", "chefbot1/base_footprint")
+    assert sim.depth_camera.link == "chefbot1/camera_link"
+    assert {c.parent for c in sim.cliffs} == {"chefbot1/base_link"}

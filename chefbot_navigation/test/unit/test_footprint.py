@@ -57,3 +57,17 @@ def test_urdf_without_collisions_is_refused() -> None:
     xml = '<robot name="r"><link name="base_footprint"/></robot>'
     with pytest.raises(ValueError, match="no <collision>"):
         footprint_from_urdf(xml)
+
+
+def test_prefixed_urdf_gives_the_same_footprint_in_the_prefixed_base(urdf: str) -> None:
+    # a robot in namespace chefbot1: links chefbot1/...; move_base reads it in its robot_base_frame
+    from chefbot_description.model import expand_xacro
+    from chefbot_navigation.footprint import resolve_footprint
+
+    prefixed = expand_xacro(args={"frame_prefix": "chefbot1/"})
+    fp, _ = resolve_footprint("urdf", 0.01, 0.2, prefixed, "chefbot1/base_footprint")
+    ref = footprint_from_urdf(urdf, padding=0.01)
+    assert fp.inscribed_radius == pytest.approx(ref.inscribed_radius)
+    assert fp.circumscribed_radius == pytest.approx(ref.circumscribed_radius)
+    with pytest.raises(ValueError):
+        resolve_footprint("urdf", 0.01, 0.2, prefixed, "base_footprint")   # names a frame the URDF lacks

@@ -135,3 +135,20 @@ def test_cliff_topics_default_and_mapping():
 def test_cliff_topics_errors_are_named(mapping, match):
     with pytest.raises(ParamError, match=match):
         cliff_topics(["cliff_left", "cliff_front", "cliff_right"], mapping)
+
+
+def test_prefixed_model_stamps_prefixed_frames():
+    # a robot in namespace chefbot1 (xacro frame_prefix): every frame the sim stamps carries the prefix
+    from chefbot_description.model import expand_xacro
+
+    s = Simulator(expand_xacro(args={"frame_prefix": "chefbot1/"}), parse_yaml_world("objects: []"))
+    try:
+        p = s.params
+        assert s.cliff_frames == ["chefbot1/cliff_left_link", "chefbot1/cliff_front_link", "chefbot1/cliff_right_link"]
+        assert (p.drive.odom_frame, p.drive.base_frame) == ("chefbot1/odom", "chefbot1/base_footprint")
+        assert (p.depth_camera.depth_frame, p.imu.frame, p.ultrasonic.frame) == (
+            "chefbot1/camera_depth_optical_frame", "chefbot1/gyro_link", "chefbot1/ultrasonic_link")
+        ev = [e for e in s.step(24) if e.kind == "cliff"]
+        assert ev and all(np.all(np.isfinite(e.data["range"])) for e in ev)   # sensors found their parent
+    finally:
+        s.close()
