@@ -22,7 +22,8 @@ CHEFBOT_DEMO_WORLD (world file, our YAML or an SDF), CHEFBOT_DEMO_MAP (map_serve
 that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``home``) --
 `make demo WORLD=... MAP=... TABLES_FILE=...` sets them; CHEFBOT_DEMO_DRIVE (firmware, the
 default, or plugin: the sim applies cmd_vel and publishes wheel odometry itself; `make demo
-DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (firmware drive: 1, the default, or 0 for wheel-only
+DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the IMU -- diff_tf's
+use_imu in the firmware drive, the sim's odom_imu_heading in the plugin drive; 0: wheel-only
 heading).  Every name starting with ``table`` in the tables file is a delivery target.
 A tables file of a map whose frame is not the world's (a SLAM map, e.g. hotel_tables_slam.yaml
 by ``align_tables``) carries ``map_in_world``: the robot is spawned at that pose composed with

@@ -6,6 +6,7 @@ so the simulated robot's messages are built exactly like the real robot's.
 from __future__ import annotations
 
 import numpy as np
+import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, Range
 
@@ -18,6 +19,14 @@ _ZERO_COV = np.zeros((6, 6))
 
 __all__ = ["camera_info_msg", "cliff_msgs", "depth_to_image", "ground_truth_msg", "imu_msg", "joint_state_msg",
            "odom_msgs", "range_msg", "rgb_to_image"]
+
+
+def sim_stamp(t: float) -> rospy.Time:
+    """ROS time of sim time ``t`` (s), rounded to the nanosecond.  rospy.Time.from_sec truncates, and
+    the sim clock is a float sum of physics steps, so 125.3 would become 125.299999999: a tf stamped
+    (scan stamp + tolerance) then misses a scan stamped exactly there by 1 ns ("extrapolation into
+    the future")."""
+    return rospy.Time(0, round(t * 1e9))
 
 
 def _diag3(v: float) -> list[float]:

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from chefbot_common.geometry import Pose2D, yaw_from_quaternion
+from chefbot_common.geometry import Pose2D, wrap_angle, yaw_from_quaternion
 from chefbot_sim import battery, imu_model
 from chefbot_sim.bullet import BulletError, BulletSim
 from chefbot_sim.camera import RgbdRenderer, RgbFrame
@@ -79,6 +79,9 @@ class SimOptions:
     imu_relative_yaw: bool = True      # IMU yaw 0 at the start pose, as the real MPU6050's DMP
     imu_gyro_bias: float = imu_model.DEFAULT_GYRO_BIAS              # rad/s, z-gyro bias at start
     imu_gyro_bias_drift: float = imu_model.DEFAULT_GYRO_BIAS_DRIFT  # rad/s/sqrt(s), bias random walk
+    # plugin mode: odometry heading from the IMU (its drifting DMP yaw) instead of the wheel difference,
+    # as Kobuki's base driver does; the firmware drive's counterpart is diff_tf's use_imu
+    odom_imu_heading: bool = False
     # wheel odometry errors (chefbot_sim.wheel_noise; 0 = perfect odometry); ground truth unaffected
     wheel_radius_error_left: float = 0.0   # fraction: real rolling radius / nominal - 1
     wheel_radius_error_right: float = 0.0  # fraction
@@ -273,6 +276,7 @@ class Simulator:
         if self.drive == "firmware":
             # robot_standalone's diff_tf owns odom + tf; the sim must not compete
             self.rates["odom"] = 0.0
+        self._odom_from_imu = self.options.odom_imu_heading and self.rates["odom"] > 0   # (the URDF has an IMU)
         self.enabled = {k: v > 0 for k, v in self.rates.items()}
         self.rng = np.random.default_rng(self.options.seed)
         self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
@@ -478,12 +482,18 @@ class Simulator:
         vel = (vel[0] / (1.0 + wn.radius_error_left), vel[1] / (1.0 + wn.radius_error_right))
         ds, dth = (dl + dr) / 2.0, (dr - dl) / d.wheel_separation
         x, y, th = self.s.odom
+        v = (vel[0] + vel[1]) / 2.0 * d.wheel_radius
+        w = (vel[1] - vel[0]) * d.wheel_radius / d.wheel_separation
+        if self._odom_from_imu:
+            # the IMU's heading (0 at the start pose, drifting with the gyro bias as of its last sample)
+            _, quat, _, ang = self.bullet.base_state()
+            bias, drift = self.s.imu_drift[0], self.s.imu_drift[1]
+            dth = wrap_angle(yaw_from_quaternion(*quat) - self.start.yaw + drift - th)
+            w = float(ang[2]) + bias
         x += ds * math.cos(th + dth / 2.0)
         y += ds * math.sin(th + dth / 2.0)
         th = math.atan2(math.sin(th + dth), math.cos(th + dth))
         self.s.odom = (x, y, th)
-        v = (vel[0] + vel[1]) / 2.0 * d.wheel_radius
-        w = (vel[1] - vel[0]) * d.wheel_radius / d.wheel_separation
         return {"x": x, "y": y, "yaw": th, "v": float(v), "w": float(w)}
 
     def _imu(self) -> ImuData:

@@ -91,3 +91,16 @@ def test_message_builders() -> None:
                           "linear_acceleration": np.array([0, 0, 9.81]), "gyro_variance": 0.01,
                           "accel_variance": 0.02}, t, "imu")
     assert imu.angular_velocity_covariance[4] == 0.01 and imu.linear_acceleration.z == 9.81
+
+
+def test_sim_stamp_rounds_to_the_nanosecond() -> None:
+    """Sim time is a float sum of physics steps: stamps must not lose a nanosecond to truncation
+    (a tf future-dated by 0.3 s from one scan must meet the scan 0.3 s later exactly)."""
+    import rospy
+
+    from chefbot_sim.ros_io import sim_stamp
+    t = sum([1.0 / 240.0] * 240 * 125) + 0.3          # ~125.3 with float error
+    assert rospy.Time.from_sec(125.3).nsecs == 299999999   # what rospy would give
+    assert sim_stamp(t) == rospy.Time(125, 300000000)
+    assert sim_stamp(124.9) + rospy.Duration(0.3) == sim_stamp(125.2)
+    assert sim_stamp(0.0) == rospy.Time(0)

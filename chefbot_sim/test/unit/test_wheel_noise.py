@@ -87,3 +87,17 @@ def test_snapshot_restores_the_wheel_noise(urdf) -> None:
         assert s.s.odom == first
     finally:
         s.close()
+
+
+def test_odom_imu_heading_keeps_the_heading_the_wheels_lose(urdf) -> None:
+    """Plugin drive with ``odom_imu_heading``: the heading is the IMU's (only its small gyro drift),
+    while the wheels' heading error grows with the turning; the position still comes from the wheels."""
+    gt, wheels = run_square(urdf, **NOISY)
+    gt_imu, imu = run_square(urdf, odom_imu_heading=True, **NOISY)
+    assert gt_imu == pytest.approx(gt, abs=1e-9)                  # physics untouched
+    yaw_err = lambda odom, truth: abs(math.remainder(odom[2] - truth[2], 2 * math.pi))  # noqa: E731
+    assert yaw_err(wheels, gt) > 0.03
+    assert yaw_err(imu, gt_imu) < 0.005                           # 0.0003 rad/s bias over ~8 s
+    pos_err = math.hypot(imu[0] - gt_imu[0], imu[1] - gt_imu[1])
+    assert 0.0 < pos_err < math.hypot(wheels[0] - gt[0], wheels[1] - gt[1])
+
