@@ -32,7 +32,10 @@ from chefbot_common.tables import load_tables
 
 PKG = "chefbot_tests"
 WALL_TIMEOUT = 150.0              # s, per delivery: a bound for a loaded machine, not a figure
-XY_TOL, YAW_TOL = 0.05, 0.05      # m, rad: final ground-truth error
+# m, rad: final ground-truth error.  Yaw holds sim_navigation's amcl-in-the-loop bound: move_base
+# stops within its yaw_goal_tolerance (0.05 rad) of amcl's estimate, whose own heading error adds
+# to it (measured 0.022-0.052 rad over five runs, so a 0.05 bound failed one run in five)
+XY_TOL, YAW_TOL = 0.05, 0.08
 DELIVERIES = "table_4 table_1"    # default of ~deliveries: table names, space-separated ('' = none)
 # names a namespaced robot leaves outside its namespace, by design (chefbot_sim README)
 SHARED_TOPICS = {"/tf", "/tf_static", "/clock", "/rosout", "/rosout_agg", "/map", "/map_metadata"}
