@@ -135,7 +135,8 @@ class FaultsGuiTest(unittest.TestCase):
         self.pump_until(lambda: self.truth.speed() < 0.01, "robot at rest after the crash", 60.0)
         t_stop = self.truth.latest()[0]
         print(f"[figure] move_base killed: robot at rest {t_stop - t_kill:.2f} s sim later", flush=True)
-        self.assertLess(t_stop - t_kill, 2.0, "robot kept driving without move_base")
+        # the drive's command_timeout (0.6 s) + braking
+        self.assertLess(t_stop - t_kill, 2.5, "robot kept driving without move_base")
         self.pump_until(lambda: self.status() == "robot not connected", "GUI: robot not connected", 60.0)
         self.assertFalse(self.window.goButton.isEnabled(), "Go enabled without a server")
         self.assertEqual(self.presenter.queue, ["table_4"], "the interrupted table left the queue")
