@@ -15,18 +15,15 @@ import os
 import sys
 import unittest
 
-import actionlib
 import rospy
 import rostest
 from actionlib_msgs.msg import GoalStatus
-from move_base_msgs.msg import MoveBaseAction
 from std_msgs.msg import String
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sim_navigation_test_node import Truth, goal_for
+from sim_navigation_test_node import connect_sim_client, goal_for
 
 from chefbot_common.rostest_helpers import wait_for
-from chefbot_common.tables import load_tables
 
 PKG = "chefbot_tests"
 WALL_TIMEOUT = 300.0
@@ -37,11 +34,7 @@ REASONS = ("unreachable", "blocked", "inside an obstacle", "closer to an obstacl
 class FaultsAisleTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
-        cls.tables = load_tables(rospy.get_param("~tables"))
-        cls.truth = Truth()
-        cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
-        assert cls.client.wait_for_server(rospy.Duration(180.0)), "no move_base"
-        wait_for(lambda: bool(cls.truth.hist), 180.0, "ground truth", stop=rospy.is_shutdown)
+        connect_sim_client(cls, 180.0)
         cls.spawn = rospy.Publisher("chefbot_sim/spawn", String, queue_size=1, latch=True)
         cls.remove = rospy.Publisher("chefbot_sim/remove", String, queue_size=1, latch=True)
 

@@ -88,10 +88,8 @@ class FaultsFilesTest(unittest.TestCase):
             self.assertIsNotNone(died, f"{what}: no 'REQUIRED process [{required}...] has died':\n{tail}")
         self.assertNotEqual(code, 0, f"{what}: exit 0 with a corrupt {bad.name}:\n{tail}")
         self.assertIn(str(bad), out, f"{what}: the message does not name {bad}:\n{tail}")
-        # a sibling node stopped by roslaunch while still importing prints a KeyboardInterrupt traceback
-        # (README: known limit); any other traceback is a failure
-        tracebacks = re.findall(r"Traceback \(most recent call last\):.*?\n(\w+)", out, re.S)
-        self.assertEqual([t for t in tracebacks if t != "KeyboardInterrupt"], [], f"{what}: a traceback:\n{tail}")
+        # also none from a sibling node that roslaunch stops (amcl while importing or waiting for the map)
+        self.assertNotIn("Traceback (most recent call last)", out, f"{what}: a traceback:\n{tail}")
 
     def test_a_sim_with_a_corrupt_world(self) -> None:
         self.check("sim, corrupt world", ["roslaunch", "--disable-title", "chefbot_sim", "chefbot_hotel_world.launch",

@@ -22,15 +22,15 @@ import rosgraph
 import rosnode
 import rospy
 import rostest
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus, GoalStatusArray
 from move_base_msgs.msg import MoveBaseAction
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sim_navigation_test_node import Truth, goal_for
+from sim_navigation_test_node import connect_sim_client, goal_for
 
 from chefbot_common.geometry import Pose2D
 from chefbot_common.rostest_helpers import wait_for
-from chefbot_common.tables import load_tables
 
 PKG = "chefbot_tests"
 NAME = "/faults_nav_test"
@@ -66,11 +66,12 @@ def answers(name: str) -> bool:
 class FaultsNavTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
-        cls.tables = load_tables(rospy.get_param("~tables"))
-        cls.truth = Truth()
-        cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
-        assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
-        wait_for(lambda: bool(cls.truth.hist), 120.0, "ground truth", stop=rospy.is_shutdown)
+        connect_sim_client(cls)
+        # amcl (scipy import, map service) may come up after move_base: wait for its map -> odom
+        buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(buffer)
+        wait_for(lambda: buffer.can_transform("map", "base_footprint", rospy.Time(0)), 120.0,
+                 "tf map -> base_footprint (amcl up)", stop=rospy.is_shutdown)
         cls.nodes = sorted(n for n in rosnode.get_node_names() if n != NAME)
         assert "/amcl" in cls.nodes and "/move_base" in cls.nodes, cls.nodes
 
