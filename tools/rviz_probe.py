@@ -1,0 +1,157 @@
+#!/usr/bin/env python3
+"""Open an RViz config in a real RViz window and report every display's status.
+
+RViz offers no outside API for a display's status (the "Status: Ok/Warn/Error"
+line of the Displays panel), so this loads the config into RViz's own
+``VisualizationFrame`` through Debian's ``python3-rviz`` bindings (librviz, the
+library /usr/bin/rviz is built on) and walks the display tree: every display
+has a "Status" property whose value is ``Ok``/``Warn``/``Error`` and whose
+children are the individual entries ("Transform" -> "No transform from [a]
+to [b]", "Topic" -> "No messages received", ...). The root display group's
+"Global Status" (fixed frame) is checked too.
+
+Needs an X display (run it under ``xvfb-run -a``) and a master with the data
+the config shows. Waits until every enabled display is Ok (or ``--timeout``
+wall seconds pass), then saves a screenshot of the window (``--screenshot``)
+and prints one JSON object: ``{"ok": bool, "displays": [{"name", "class",
+"status", "entries": {name: text}}, ...]}``. Exit code 0 when all are Ok,
+1 when some are not, 2 on a bad config or no display.
+
+Usage: python tools/rviz_probe.py CONFIG.rviz [--timeout 60] [--settle 3]
+       [--screenshot out.png] [--size 1280x800]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+
+def _children(prop) -> list:
+    return [prop.childAt(i) for i in range(prop.numChildren())]
+
+
+def status_of(prop) -> tuple[str, dict]:
+    """(``Ok``/``Warn``/``Error``, {entry name: text}) of a display or the root group.
+
+    The bindings hand out plain ``Property`` objects; a status list is the child named
+    ``Status: <level>`` (``Global Status: <level>`` on the root group), one child per entry.
+    A display that never set a status has no such child: nothing to complain about (Ok)."""
+    for child in _children(prop):
+        name = str(child.getName())
+        if name.startswith(("Status:", "Global Status:")):
+            entries = {str(e.getName()): str(e.getValue()) for e in _children(child)}
+            return name.split(":", 1)[1].strip(), entries
+    return "Ok", {}
+
+
+def config_classes(config: Path) -> dict[str, str]:
+    """Display name -> class (e.g. ``rviz/LaserScan``) from the .rviz YAML (the bindings hide it)."""
+    import yaml
+
+    doc = yaml.safe_load(config.read_text()) or {}
+    out: dict[str, str] = {}
+
+    def visit(displays: list) -> None:
+        for d in displays or []:
+            out[str(d.get("Name", ""))] = str(d.get("Class", ""))
+            visit(d.get("Displays"))
+
+    visit((doc.get("Visualization Manager") or {}).get("Displays"))
+    return out
+
+
+def snapshot(manager, classes: dict[str, str]) -> dict:
+    """Status of the root group (fixed frame) and of every enabled display (groups flattened)."""
+    root = manager.getRootDisplayGroup()
+    level, entries = status_of(root)
+    displays = [{"name": "Global Status", "class": "", "status": level, "entries": entries}]
+
+    def visit(group) -> None:
+        for child in _children(group):
+            name = str(child.getName())
+            if name not in classes or child.getValue() is not True:
+                continue  # a property (Global Options, status list) or a disabled display
+            level, entries = status_of(child)
+            displays.append({"name": name, "class": classes[name], "status": level, "entries": entries})
+            if classes[name] == "rviz/Group":
+                visit(child)
+
+    visit(root)
+    return {"ok": all(d["status"] == "Ok" for d in displays), "displays": displays}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("config", type=Path, help=".rviz file")
+    ap.add_argument("--timeout", type=float, default=60.0, help="wall seconds to wait for all Ok")
+    ap.add_argument("--settle", type=float, default=3.0,
+                    help="wall seconds all displays must stay Ok before the verdict")
+    ap.add_argument("--screenshot", type=Path, help="save a PNG of the RViz window here")
+    ap.add_argument("--size", default="1280x800", help="window size WxH, px")
+    args = ap.parse_args(argv)
+    if not args.config.is_file():
+        print(f"rviz_probe: config file {args.config} not found", file=sys.stderr)
+        return 2
+    if not os.environ.get("DISPLAY"):
+        print("rviz_probe: no DISPLAY (run under xvfb-run -a)", file=sys.stderr)
+        return 2
+    try:
+        w, h = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        print(f"rviz_probe: --size must be WxH, got {args.size!r}", file=sys.stderr)
+        return 2
+
+    from python_qt_binding.QtWidgets import QApplication
+    from rviz import bindings as rviz
+
+    app = QApplication([sys.argv[0]])
+    frame = rviz.VisualizationFrame()
+    frame.setSplashPath("")
+    frame.initialize()
+    config = rviz.Config()
+    reader = rviz.YamlConfigReader()
+    reader.readFile(config, str(args.config))
+    if reader.error():
+        print(f"rviz_probe: cannot read {args.config}: {reader.errorMessage()}", file=sys.stderr)
+        return 2
+    frame.load(config)
+    classes = config_classes(args.config)
+    frame.resize(w, h)
+    frame.show()
+    manager = frame.getManager()
+
+    deadline = time.monotonic() + args.timeout
+    ok_since = None
+    snap = snapshot(manager, classes)
+    while time.monotonic() < deadline:
+        app.processEvents()
+        time.sleep(0.05)
+        snap = snapshot(manager, classes)
+        if not snap["ok"]:
+            ok_since = None
+        elif ok_since is None:
+            ok_since = time.monotonic()
+        elif time.monotonic() - ok_since >= args.settle:
+            break
+    if args.screenshot is not None:
+        for _ in range(20):  # let the last frames render
+            app.processEvents()
+            time.sleep(0.05)
+        args.screenshot.parent.mkdir(parents=True, exist_ok=True)
+        pix = app.primaryScreen().grabWindow(int(frame.winId()))
+        if not pix.save(str(args.screenshot)):
+            print(f"rviz_probe: cannot save screenshot {args.screenshot}", file=sys.stderr)
+            snap["ok"] = False
+    print(json.dumps(snap, indent=1), flush=True)
+    frame.hide()
+    # librviz's teardown (Ogre, ros::shutdown) can hang or crash on some machines: the verdict
+    # is printed, so leave without it
+    os._exit(0 if snap["ok"] else 1)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
