@@ -7,15 +7,20 @@ line of the Displays panel), so this loads the config into RViz's own
 library /usr/bin/rviz is built on) and walks the display tree: every display
 has a "Status" property whose value is ``Ok``/``Warn``/``Error`` and whose
 children are the individual entries ("Transform" -> "No transform from [a]
-to [b]", "Topic" -> "No messages received", ...). The root display group's
-"Global Status" (fixed frame) is checked too.
+to [b]", "Topic" -> "N messages received", ...). The root display group's
+"Global Status" (fixed frame) is checked too. RViz 1 leaves a message display
+(LaserScan, Path, ...) at Ok with "Topic: OK" until its first message arrives;
+the probe reports that as Warn "No messages received", so a topic nobody
+publishes fails the check.
 
 Needs an X display (run it under ``xvfb-run -a``) and a master with the data
 the config shows. Waits until every enabled display is Ok (or ``--timeout``
-wall seconds pass), then saves a screenshot of the window (``--screenshot``)
-and prints one JSON object: ``{"ok": bool, "displays": [{"name", "class",
-"status", "entries": {name: text}}, ...]}``. Exit code 0 when all are Ok,
-1 when some are not, 2 on a bad config or no display.
+wall seconds pass), saves a screenshot of the window then (``--screenshot``;
+at the timeout if never), checks that all stay Ok for ``--settle`` s, and
+prints one JSON object: ``{"ok": bool, "displays": [{"name", "class",
+"status", "entries": {name: text}}, ...], "wall_s_to_ok": s}`` (when the
+last all-Ok stretch began, wall s after loading). Exit code 0 when all are
+Ok, 1 when some are not, 2 on a bad config or no display.
 
 Usage: python tools/rviz_probe.py CONFIG.rviz [--timeout 60] [--settle 3]
        [--screenshot out.png] [--size 1280x800]
@@ -76,12 +81,28 @@ def snapshot(manager, classes: dict[str, str]) -> dict:
             if name not in classes or child.getValue() is not True:
                 continue  # a property (Global Options, status list) or a disabled display
             level, entries = status_of(child)
+            if entries.get("Topic") == "OK" and "Message" not in entries and level == "Ok":
+                # RViz 1 keeps a subscribed message display Ok until its first message (then
+                # "N messages received"); ROS 2's "No messages received" warning is ours here
+                level, entries["Topic"] = "Warn", "No messages received (subscribed, nothing arrived)"
             displays.append({"name": name, "class": classes[name], "status": level, "entries": entries})
             if classes[name] == "rviz/Group":
                 visit(child)
 
     visit(root)
     return {"ok": all(d["status"] == "Ok" for d in displays), "displays": displays}
+
+
+def save_screenshot(app, frame, path: Path) -> bool:
+    """Render a few more frames, then save the window as a PNG; False (said on stderr) if it fails."""
+    for _ in range(10):
+        app.processEvents()
+        time.sleep(0.05)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not app.primaryScreen().grabWindow(int(frame.winId())).save(str(path)):
+        print(f"rviz_probe: cannot save screenshot {path}", file=sys.stderr)
+        return False
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -124,8 +145,10 @@ def main(argv: list[str] | None = None) -> int:
     frame.show()
     manager = frame.getManager()
 
-    deadline = time.monotonic() + args.timeout
+    t0 = time.monotonic()
+    deadline = t0 + args.timeout
     ok_since = None
+    shot_ok = args.screenshot is None
     snap = snapshot(manager, classes)
     while time.monotonic() < deadline:
         app.processEvents()
@@ -133,19 +156,18 @@ def main(argv: list[str] | None = None) -> int:
         snap = snapshot(manager, classes)
         if not snap["ok"]:
             ok_since = None
-        elif ok_since is None:
+            continue
+        if ok_since is None:
             ok_since = time.monotonic()
+            snap_first_ok_s = ok_since - t0
+            if not shot_ok:  # the picture as soon as all is Ok (a robot on its way, not arrived)
+                shot_ok = save_screenshot(app, frame, args.screenshot)
         elif time.monotonic() - ok_since >= args.settle:
             break
-    if args.screenshot is not None:
-        for _ in range(20):  # let the last frames render
-            app.processEvents()
-            time.sleep(0.05)
-        args.screenshot.parent.mkdir(parents=True, exist_ok=True)
-        pix = app.primaryScreen().grabWindow(int(frame.winId()))
-        if not pix.save(str(args.screenshot)):
-            print(f"rviz_probe: cannot save screenshot {args.screenshot}", file=sys.stderr)
-            snap["ok"] = False
+    if not shot_ok:  # never all Ok: a picture of what is wrong
+        shot_ok = save_screenshot(app, frame, args.screenshot)
+    snap["ok"] = snap["ok"] and shot_ok and ok_since is not None
+    snap["wall_s_to_ok"] = round(snap_first_ok_s, 1) if ok_since is not None else None
     print(json.dumps(snap, indent=1), flush=True)
     frame.hide()
     # librviz's teardown (Ogre, ros::shutdown) can hang or crash on some machines: the verdict
