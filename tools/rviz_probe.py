@@ -126,6 +126,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rviz_probe: --size must be WxH, got {args.size!r}", file=sys.stderr)
         return 2
 
+    # Ogre draws into a native X window: Qt's offscreen platform (the test runner sets it for
+    # the GUI tests) gives it none ("Invalid parentWindowHandle")
+    os.environ["QT_QPA_PLATFORM"] = "xcb"
     from python_qt_binding.QtWidgets import QApplication
     from rviz import bindings as rviz
 
