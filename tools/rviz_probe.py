@@ -73,6 +73,8 @@ def snapshot(manager, classes: dict[str, str]) -> dict:
     """Status of the root group (fixed frame) and of every enabled display (groups flattened)."""
     root = manager.getRootDisplayGroup()
     level, entries = status_of(root)
+    if "Fixed Frame" not in entries:  # RViz has not run its first update yet: nothing is known
+        level, entries["Fixed Frame"] = "Warn", "not checked yet (no update so far)"
     displays = [{"name": "Global Status", "class": "", "status": level, "entries": entries}]
 
     def visit(group) -> None:
