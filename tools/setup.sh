@@ -19,7 +19,7 @@ say() { printf '[setup] %s\n' "$*"; }
 APT_LISTS=(tools/apt-packages.txt)
 if [ "${CHEFBOT_RVIZ:-0}" = "1" ]; then
     APT_LISTS+=(tools/apt-packages-rviz.txt)
-    say "CHEFBOT_RVIZ=1: also installing tools/apt-packages-rviz.txt"
+    say "CHEFBOT_RVIZ=1: RViz opt-in, tools/apt-packages-rviz.txt included"
 fi
 mapfile -t PKGS < <(sed -e 's/#.*//' -e '/^[[:space:]]*$/d' "${APT_LISTS[@]}" | tr -d ' \t')
 missing=()
