@@ -47,12 +47,14 @@ class Totals:
     failed: int = 0
     skipped: int = 0
     failures: list[str] = field(default_factory=list)
+    skips: list[str] = field(default_factory=list)  # "test: reason", printed by the runner
 
     def add(self, other: Totals) -> None:
         self.passed += other.passed
         self.failed += other.failed
         self.skipped += other.skipped
         self.failures += other.failures
+        self.skips += other.skips
 
 
 def log(msg: str) -> None:
@@ -77,8 +79,9 @@ def junit_totals(path: Path, label: str) -> Totals:
                 t.failed += 1
                 failed_here += 1
                 t.failures.append(name)
-            elif case.find("skipped") is not None:
+            elif (skip := case.find("skipped")) is not None:
                 t.skipped += 1
+                t.skips.append(f"{name}: {skip.get('message', '')}")
             else:
                 t.passed += 1
         declared = int(suite.get("errors", 0) or 0) + int(suite.get("failures", 0) or 0)
@@ -174,6 +177,8 @@ def run_pytest(env: dict, pattern: str | None) -> Totals:
             t = junit_totals(xml, f"pytest {rel}")
         log(f"pytest {rel}: {t.passed} passed, {t.failed} failed, {t.skipped} skipped "
             f"({time.monotonic() - t0:.1f} s)")
+        for skip in t.skips:
+            log(f"  skipped {skip}")
         if t.failed or proc.returncode not in (0, 1):
             print(proc.stdout[-6000:], proc.stderr[-3000:], sep="\n", flush=True)
         total.add(t)

@@ -5,6 +5,7 @@
 #      (so Debian's rospy and PyPI's packages meet), with pinned requirements,
 #   3. catkin_make of the workspace (the repository top level is the src space).
 # A second run with nothing to do takes a few seconds.
+# CHEFBOT_RVIZ=1 also installs the optional tools/apt-packages-rviz.txt (RViz, Xvfb).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -14,7 +15,13 @@ STAMPS="$ROOT/build/.stamps"
 say() { printf '[setup] %s\n' "$*"; }
 
 # ---------------------------------------------------------------- 1. apt
-mapfile -t PKGS < <(sed -e 's/#.*//' -e '/^[[:space:]]*$/d' tools/apt-packages.txt | tr -d ' \t')
+# CHEFBOT_RVIZ=1 adds the optional RViz list (rviz, its Python bindings, Xvfb).
+APT_LISTS=(tools/apt-packages.txt)
+if [ "${CHEFBOT_RVIZ:-0}" = "1" ]; then
+    APT_LISTS+=(tools/apt-packages-rviz.txt)
+    say "CHEFBOT_RVIZ=1: RViz opt-in, tools/apt-packages-rviz.txt included"
+fi
+mapfile -t PKGS < <(sed -e 's/#.*//' -e '/^[[:space:]]*$/d' "${APT_LISTS[@]}" | tr -d ' \t')
 missing=()
 for p in "${PKGS[@]}"; do
     st=$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || true)

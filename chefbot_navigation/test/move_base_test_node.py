@@ -17,7 +17,7 @@ import rospy
 import rostest
 from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, Quaternion
+from geometry_msgs.msg import PolygonStamped, PoseStamped, Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid, Path
 from nav_msgs.srv import GetPlan, GetPlanRequest
@@ -206,6 +206,13 @@ class MoveBaseTest(unittest.TestCase):
         self.assertIn(99, grid.data)       # inscribed ring
         local = rospy.wait_for_message("move_base/local_costmap/costmap", OccupancyGrid, 60.0)
         self.assertEqual((local.info.width, local.info.height), (60, 60))
+        # the footprint (RViz's Polygon display): in map, around the robot (stands still here)
+        fp = rospy.wait_for_message("move_base/local_costmap/footprint", PolygonStamped, 60.0)
+        self.assertEqual(fp.header.frame_id, "map")
+        self.assertGreaterEqual(len(fp.polygon.points), 3)
+        pose = self.robot.pose
+        dist = [math.hypot(p.x - pose.x, p.y - pose.y) for p in fp.polygon.points]
+        self.assertTrue(all(0.1 < d < 0.35 for d in dist), f"footprint vertices {dist} m from the robot")
 
     def test_p_time_jumping_back_mid_goal_recovers(self) -> None:
         self.go(make_goal(0.0, 0.0, 0.0))

@@ -91,14 +91,20 @@ def goal_for(pose) -> MoveBaseGoal:
     return g
 
 
+def connect_sim_client(cls: type, timeout: float = 120.0) -> None:
+    """Shared setUpClass of the sim scenario tests: ``cls.tables`` (from ``~tables``), ``cls.truth``
+    and ``cls.client`` (move_base), waiting (wall-clock ``timeout`` s) for the server and ground truth."""
+    cls.tables = load_tables(rospy.get_param("~tables"))
+    cls.truth = Truth()
+    cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+    assert cls.client.wait_for_server(rospy.Duration(timeout)), "no move_base"
+    wait_for(lambda: bool(cls.truth.hist), timeout, "ground truth", stop=rospy.is_shutdown)
+
+
 class SimNavigationTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
-        cls.tables = load_tables(rospy.get_param("~tables"))
-        cls.truth = Truth()
-        cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
-        assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
-        wait_for(lambda: bool(cls.truth.hist), 120.0, "ground truth")
+        connect_sim_client(cls)
         cls.spawn = rospy.Publisher("chefbot_sim/spawn", String, queue_size=1, latch=True)
 
     def deliver(self, name: str, sent_at: float | None = None) -> float:

@@ -31,11 +31,12 @@ def test_junit_counts_pass_fail_skip(tmp_path: Path) -> None:
         '<testcase classname="a" name="ok"/>'
         '<testcase classname="a" name="bad"><failure message="x"/></testcase>'
         '<testcase classname="a" name="err"><error message="y"/></testcase>'
-        '<testcase classname="a" name="sk"><skipped/></testcase>'
+        '<testcase classname="a" name="sk"><skipped message="rviz not installed"/></testcase>'
         "</testsuite></testsuites>")
     t = run_tests.junit_totals(xml, "lbl")
     assert (t.passed, t.failed, t.skipped) == (1, 2, 1)
     assert "lbl::a.bad" in t.failures and "lbl::a.err" in t.failures
+    assert t.skips == ["lbl::a.sk: rviz not installed"]  # the runner prints each skip's reason
 
 
 def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:

@@ -56,6 +56,8 @@ def test_navigation_rviz() -> None:
             ("rviz/LaserScan", "scan"),
             ("rviz/PoseArray", "particlecloud"),
             ("rviz/Path", "move_base/global_plan"),
+            ("rviz/Polygon", "move_base/local_costmap/footprint"),
+            ("rviz/Pose", "move_base/current_goal"),
             ("rviz/RobotModel", None)} <= topics
     tools = {(t["Class"], t.get("Topic")) for t in vm["Tools"]}
     assert {("rviz/SetInitialPose", "initialpose"), ("rviz/SetGoal", "move_base_simple/goal")} <= tools

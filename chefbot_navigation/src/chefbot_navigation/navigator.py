@@ -183,11 +183,46 @@ def build_navigator(occ, node: NodeParams, nav: NavigatorParams, ctrl: Controlle
     return layers, navigator
 
 
-def pose_age_fault(age: float, tolerance: float, parent: str, child: str) -> str:
-    """Why a robot pose ``age`` s old is too stale to drive on ('' when within ``tolerance`` s)."""
+def pose_age_fault(age: float, tolerance: float, parent: str, child: str,
+                   link: tuple[str, str, str, float] | None = None) -> str:
+    """Why a robot pose ``age`` s old is too stale to drive on ('' when within ``tolerance`` s).
+
+    ``link`` (parent, child, broadcaster, age s), from :func:`stalest_link`, names the transform of
+    the chain that went stale -- e.g. ``map -> odom`` of a localization node that died."""
     if age <= tolerance:
         return ""
-    return f"transform {parent} -> {child} is {age:.2f} s old (transform_tolerance {tolerance} s)"
+    text = f"transform {parent} -> {child} is {age:.2f} s old (transform_tolerance {tolerance} s)"
+    stale = link_fault(link, tolerance)
+    return f"{text}; {stale}" if stale else text
+
+
+def link_fault(link: tuple[str, str, str, float] | None, tolerance: float) -> str:
+    """``stale link map -> odom (from /amcl), not updated for 3.20 s`` when ``link`` (see
+    :func:`stalest_link`) is older than ``tolerance`` s, else ''.  Also explains a failed lookup:
+    once the dead link's last transform falls out of the tf cache, tf2 reports only an
+    extrapolation error."""
+    if link is None or link[3] <= tolerance:
+        return ""
+    return f"stale link {link[0]} -> {link[1]} (from {link[2]}), not updated for {link[3]:.2f} s"
+
+
+def stalest_link(frames: dict[str, Any], child: str, root: str,
+                 now: float) -> tuple[str, str, str, float] | None:
+    """The oldest non-static transform on the tf chain ``root`` ... -> ``child``.
+
+    ``frames`` is tf2's ``all_frames_as_yaml()`` parsed: frame -> {parent, broadcaster,
+    most_recent_transform (s; 0 for static transforms)}.  Returns (parent, child, broadcaster,
+    age s at ``now``), or None when the chain has no dynamic link or is broken."""
+    oldest: tuple[str, str, str, float] | None = None
+    frame, seen = child, set()
+    while frame != root and frame in frames and frame not in seen:
+        seen.add(frame)
+        info = frames[frame] or {}
+        parent, stamp = str(info.get("parent", "")), float(info.get("most_recent_transform", 0.0) or 0.0)
+        if stamp > 0.0 and (oldest is None or now - stamp > oldest[3]):
+            oldest = (parent, frame, str(info.get("broadcaster", "unknown")), now - stamp)
+        frame = parent
+    return oldest
 
 
 def scan_fault(now: float, last_scan_time: float | None, timeout: float) -> str:

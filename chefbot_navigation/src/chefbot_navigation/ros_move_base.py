@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import rospy
-from geometry_msgs.msg import Pose, PoseStamped, Quaternion
+from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped, Quaternion
 from nav_msgs.msg import OccupancyGrid, Path
 from nav_msgs.srv import GetPlan, GetPlanResponse
 from std_msgs.msg import String
@@ -49,12 +49,15 @@ def load_footprint(cost_p: Any, base_frame: str = "base_footprint") -> Footprint
 
 class CostmapPublishers:
     """``~global_costmap/costmap`` (latched, whole map) and ``~local_costmap/costmap`` (a window of
-    ``nav_p.local_window`` m around the robot), each at its publish frequency (Hz; 0 = never)."""
+    ``nav_p.local_window`` m around the robot), each at its publish frequency (Hz; 0 = never);
+    with the local window, ``~local_costmap/footprint`` (the padded footprint at the robot's pose,
+    in the global frame, as costmap_2d's ``footprint`` topic: RViz's Polygon display)."""
 
     def __init__(self, node: Any) -> None:
         self.node = node
         self.pub_global = rospy.Publisher("~global_costmap/costmap", OccupancyGrid, queue_size=1, latch=True)
         self.pub_local = rospy.Publisher("~local_costmap/costmap", OccupancyGrid, queue_size=1)
+        self.pub_footprint = rospy.Publisher("~local_costmap/footprint", PolygonStamped, queue_size=1)
 
     def start(self) -> list[threading.Thread]:
         """Start the publishing threads (:func:`periodic`); returns them for the diagnostics."""
@@ -78,7 +81,20 @@ class CostmapPublishers:
             node.apply_scans()
             cm = node.layers.window(pose.x, pose.y, w, w) if local_only else node.layers.master()
         pub = self.pub_local if local_only else self.pub_global
-        pub.publish(occupancy_to_msg(cm.to_occupancy(), rospy.Time.now(), node.np.global_frame))
+        stamp = rospy.Time.now()
+        pub.publish(occupancy_to_msg(cm.to_occupancy(), stamp, node.np.global_frame))
+        if local_only:
+            self.pub_footprint.publish(footprint_to_msg(node.footprint, pose, stamp, node.np.global_frame))
+
+
+def footprint_to_msg(footprint: Footprint, pose: Pose2D, stamp: rospy.Time, frame: str) -> PolygonStamped:
+    """The footprint polygon (robot frame, m) placed at ``pose`` (``frame``, m / rad)."""
+    c, s = np.cos(pose.yaw), np.sin(pose.yaw)
+    pts = footprint.polygon @ np.array([[c, s], [-s, c]]) + (pose.x, pose.y)
+    msg = PolygonStamped()
+    msg.header.stamp, msg.header.frame_id = stamp, frame
+    msg.polygon.points = [Point32(float(x), float(y), 0.0) for x, y in pts]
+    return msg
 
 
 class PlanServices:

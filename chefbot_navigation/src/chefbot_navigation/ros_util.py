@@ -10,11 +10,12 @@ from typing import Any
 
 import rospy
 import tf2_ros
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.health import TaskHealth
-from chefbot_navigation.navigator import pose_age_fault
+from chefbot_navigation.navigator import link_fault, pose_age_fault, stalest_link
 from chefbot_navigation.ros_io import transform_to_pose2d
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
@@ -154,8 +155,21 @@ class PlanarTf:
     def fresh_pose(self, child: str, tolerance: float) -> tuple[Pose2D | None, str]:
         """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why."""
         pose, stamp, why = self.lookup(child)
-        why = why or pose_age_fault(rospy.get_time() - stamp, tolerance, self.global_frame, child)
+        now = rospy.get_time()
+        if why:     # e.g. extrapolation into the past once a dead node's last transform left the cache
+            stale = link_fault(self.stalest_link(child, now), tolerance)
+            why = f"{stale}; {why}" if stale else why
+        elif now - stamp > tolerance:
+            why = pose_age_fault(now - stamp, tolerance, self.global_frame, child, self.stalest_link(child, now))
         return (None, why) if why else (pose, "")
+
+    def stalest_link(self, child: str, now: float) -> tuple[str, str, str, float] | None:
+        """The chain's oldest dynamic transform (see navigator.stalest_link); None if tf cannot say."""
+        try:
+            frames = yaml.safe_load(self.buffer.all_frames_as_yaml()) or {}
+        except yaml.YAMLError:
+            return None
+        return stalest_link(frames, child, self.global_frame, now) if isinstance(frames, dict) else None
 
     def clear(self) -> None:
         """Forget every transform (time jumped back)."""

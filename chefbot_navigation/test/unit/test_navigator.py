@@ -211,6 +211,24 @@ def test_parse_goal_and_faults() -> None:
     assert "0.60 s old" in pose_age_fault(0.6, 0.5, "map", "base")
 
 
+def test_stalest_link_names_the_dead_localization() -> None:
+    """A dead amcl leaves map -> odom behind while odometry stays fresh: the abort names that link."""
+    from chefbot_navigation.navigator import link_fault, pose_age_fault, stalest_link
+    frames = {"odom": {"parent": "map", "broadcaster": "/amcl", "most_recent_transform": 80.3},
+              "base_footprint": {"parent": "odom", "broadcaster": "/diff_tf", "most_recent_transform": 99.95},
+              "camera_link": {"parent": "base_footprint", "broadcaster": "/rsp", "most_recent_transform": 0.0}}
+    link = stalest_link(frames, "camera_link", "map", 100.0)
+    assert link is not None and link[:3] == ("map", "odom", "/amcl") and abs(link[3] - 19.7) < 1e-9
+    text = pose_age_fault(19.7, 0.5, "map", "base_footprint", link)
+    assert "stale link map -> odom (from /amcl), not updated for 19.70 s" in text
+    assert link_fault(link, 0.5).startswith("stale link map -> odom") and link_fault(link, 30.0) == ""
+    assert link_fault(None, 0.5) == ""
+    assert stalest_link(frames, "base_footprint", "odom", 100.0)[:2] == ("odom", "base_footprint")
+    assert stalest_link({}, "base_footprint", "map", 1.0) is None          # unknown frame
+    loop = {"a": {"parent": "b", "most_recent_transform": 1.0}, "b": {"parent": "a", "most_recent_transform": 2.0}}
+    assert stalest_link(loop, "a", "map", 3.0)[1] == "a"                     # a cycle ends the walk
+
+
 def test_huge_goal_coordinate_reads_short_in_the_reason() -> None:
     """A 1e300 coordinate used to print as a 300-digit number in the abort text."""
     nav, _ = make_nav()

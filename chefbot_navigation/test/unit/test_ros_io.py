@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import math
 
 import numpy as np
 import pytest
@@ -48,3 +49,16 @@ def test_transform_and_path() -> None:
     assert (q.x, q.y, q.yaw) == pytest.approx((p.x, p.y, p.yaw))
     path = path_to_msg(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]), None, None, "map")
     assert len(path.poses) == 3 and path.header.frame_id == "map"
+
+
+def test_footprint_to_msg_places_the_polygon_at_the_robot_pose() -> None:
+    """move_base's ``~local_costmap/footprint``: robot-frame vertices rotated by yaw, shifted by x, y."""
+    from chefbot_navigation.footprint import Footprint
+    from chefbot_navigation.ros_move_base import footprint_to_msg
+
+    fp = Footprint(np.array([[0.2, -0.1], [0.2, 0.1], [-0.2, 0.1], [-0.2, -0.1]]))
+    msg = footprint_to_msg(fp, Pose2D(1.0, 2.0, math.pi / 2), genpy.Time(5), "map")
+    assert msg.header.frame_id == "map" and msg.header.stamp == genpy.Time(5)
+    got = np.array([[p.x, p.y] for p in msg.polygon.points])
+    # (0.2, -0.1) turned 90° left is (0.1, 0.2), then + (1, 2)
+    np.testing.assert_allclose(got, [[1.1, 2.2], [0.9, 2.2], [0.9, 1.8], [1.1, 1.8]], atol=1e-6)
