@@ -10,6 +10,7 @@ from typing import Any
 
 import rospy
 import tf2_ros
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from chefbot_common.geometry import Pose2D
@@ -132,6 +133,30 @@ def revive_action_status_timer(server, who: str) -> None:
         srv.status_timer = rospy.Timer(timer._period, srv.publish_status_async)
 
 
+def stalest_link(frames_yaml: str, child: str, root: str, now: float) -> str:
+    """'; stalest link P -> C (from NODE) updated X s ago' for the tf chain ``root`` .. ``child``
+    described by tf2's ``all_frames_as_yaml()``, with a hint when it is the odometry link
+    (the one ending in ``child``, the robot base): '' when the yaml cannot be read."""
+    try:
+        frames = yaml.safe_load(frames_yaml) or {}
+    except yaml.YAMLError:
+        return ""
+    worst: tuple[float, str, str, str] | None = None
+    frame, seen = child, set()
+    while frame != root and frame in frames and frame not in seen:
+        seen.add(frame)
+        info = frames[frame] or {}
+        parent, last = str(info.get("parent", "?")), info.get("most_recent_transform")
+        if isinstance(last, (int, float)) and last > 0 and (worst is None or last < worst[0]):
+            worst = (float(last), parent, frame, str(info.get("broadcaster", "?")))
+        frame = parent
+    if worst is None:
+        return ""
+    last, parent, frame, who = worst
+    hint = " (no odometry: drive, board link or encoders down?)" if frame == child else ""
+    return f"; stalest link {parent} -> {frame} (from {who}) updated {now - last:.1f} s ago{hint}"
+
+
 class PlanarTf:
     """A tf2 buffer and listener answering planar questions about frames in one global frame."""
 
@@ -152,9 +177,13 @@ class PlanarTf:
         return transform_to_pose2d(t), t.header.stamp.to_sec(), ""
 
     def fresh_pose(self, child: str, tolerance: float) -> tuple[Pose2D | None, str]:
-        """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why."""
+        """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why (naming the
+        stalest link of the chain and who publishes it, e.g. diff_tf's odom -> base_footprint)."""
         pose, stamp, why = self.lookup(child)
-        why = why or pose_age_fault(rospy.get_time() - stamp, tolerance, self.global_frame, child)
+        now = rospy.get_time()
+        why = why or pose_age_fault(now - stamp, tolerance, self.global_frame, child)
+        if why:   # stale, or gone from the buffer (older than its cache): which link, whose
+            why += stalest_link(self.buffer.all_frames_as_yaml(), child, self.global_frame, now)
         return (None, why) if why else (pose, "")
 
     def clear(self) -> None:

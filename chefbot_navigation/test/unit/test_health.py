@@ -77,3 +77,31 @@ def test_periodic_keeps_running_after_exceptions() -> None:
     assert thread.is_alive()
     assert thread.health.errors >= 2 and thread.health.calls >= 4
     assert len(logged) == 1 and "MemoryError" in logged[0]     # throttled: one line for many failures
+
+
+def test_stalest_link_names_the_silent_odometry() -> None:
+    """move_base's stale-pose reason names the stale tf link and its publisher (tf2's frames yaml)."""
+    import rospy
+    import tf2_py
+    from geometry_msgs.msg import TransformStamped
+
+    from chefbot_navigation.ros_util import stalest_link
+
+    def frames(map_odom: float, odom_base: float) -> str:
+        buf = tf2_py.BufferCore()
+        for parent, child, stamp, who in (("map", "odom", map_odom, "/amcl"),
+                                          ("odom", "base_footprint", odom_base, "/diff_tf")):
+            t = TransformStamped()
+            t.header.frame_id, t.child_frame_id, t.header.stamp = parent, child, rospy.Time.from_sec(stamp)
+            t.transform.rotation.w = 1.0
+            buf.set_transform(t, who)
+        return buf.all_frames_as_yaml()
+
+    assert stalest_link(frames(10.0, 4.0), "base_footprint", "map", 12.0) == (
+        "; stalest link odom -> base_footprint (from /diff_tf) updated 8.0 s ago "
+        "(no odometry: drive, board link or encoders down?)")
+    # amcl's link is the stale one: named, without the odometry hint
+    assert stalest_link(frames(4.0, 10.0), "base_footprint", "map", 12.0) == \
+        "; stalest link map -> odom (from /amcl) updated 8.0 s ago"
+    assert stalest_link("", "base_footprint", "map", 1.0) == ""
+    assert stalest_link("a: [", "base_footprint", "map", 1.0) == ""
