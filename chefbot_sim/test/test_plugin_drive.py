@@ -16,6 +16,7 @@ from geometry_msgs.msg import Pose2D, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, LaserScan, Range
+from std_srvs.srv import Empty
 
 from chefbot_common.rostest_helpers import SimRecorder
 
@@ -132,6 +133,16 @@ class PluginDrive(unittest.TestCase):
         self.assertTrue(imu and gt)
         self.assertGreater(abs(np.mean(gt)), 0.5, "robot did not turn")
         self.assertAlmostEqual(float(np.mean(imu)), float(np.mean(gt)), delta=0.02)
+
+    def test_4_fault_injection_refused_in_plugin_drive(self) -> None:
+        """~unplug/~replug/~emit_garbage exist in both drives; the plugin drive refuses them by name."""
+        for name in ("unplug", "replug", "emit_garbage"):
+            srv = rospy.ServiceProxy(f"chefbot_sim/{name}", Empty)
+            srv.wait_for_service(30.0)
+            with self.assertRaises(rospy.ServiceException) as err:
+                srv()
+            self.assertIn(f"~{name}", str(err.exception))
+            self.assertIn("drive:=firmware", str(err.exception))
 
 
 if __name__ == "__main__":

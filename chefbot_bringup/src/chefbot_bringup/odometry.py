@@ -232,3 +232,14 @@ class DiffOdometry:
         twist_cov = np.diag([cfg.twist_linear_var, cfg.twist_linear_var, UNOBSERVED_VAR,
                              UNOBSERVED_VAR, UNOBSERVED_VAR, cfg.twist_angular_var])
         return OdometryState(t, self.x, self.y, self.theta, self.v, self.w, pose_cov, twist_cov)
+
+
+def silent_encoders(last_ticks: dict[str, float | None], t: float, timeout: float) -> str:
+    """Which wheel topics are older than ``timeout`` s at time ``t`` (s), e.g.
+    ``'lwheel 1.2 s ago, rwheel 1.2 s ago'``; '' while all are fresh, before every wheel has
+    reported once (odometry has nothing to publish then anyway) or with ``timeout`` 0 (off).
+    ``last_ticks``: topic -> when it last reported (s).  diff_tf withholds odom and tf while
+    this is non-empty: odometry from frozen counters would claim the robot stands still."""
+    if timeout <= 0 or any(v is None for v in last_ticks.values()):
+        return ""
+    return ", ".join(f"{k} {t - v:.1f} s ago" for k, v in last_ticks.items() if t - v > timeout)

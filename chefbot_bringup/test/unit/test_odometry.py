@@ -175,3 +175,13 @@ def test_covariance_grows_with_distance_not_time():
 def test_bad_config_names_field():
     with pytest.raises(ValueError, match="base_width"):
         OdometryConfig(base_width=0.0)
+
+
+def test_silent_encoders_names_the_stale_wheels() -> None:
+    from chefbot_bringup.odometry import silent_encoders
+    assert silent_encoders({"lwheel": None, "rwheel": 1.0}, 10.0, 1.0) == ""        # not both reported yet
+    assert silent_encoders({"lwheel": 9.5, "rwheel": 9.2}, 10.0, 1.0) == ""         # fresh
+    assert silent_encoders({"lwheel": 8.8, "rwheel": 9.5}, 10.0, 1.0) == "lwheel 1.2 s ago"
+    assert silent_encoders({"lwheel": 8.0, "rwheel": 8.0}, 10.0, 1.0) == "lwheel 2.0 s ago, rwheel 2.0 s ago"
+    assert silent_encoders({"lwheel": 0.0, "rwheel": 0.0}, 100.0, 0.0) == ""        # 0 = check off
+    assert silent_encoders({"lwheel": 12.0, "rwheel": 12.0}, 10.0, 1.0) == ""       # time jumped back: fresh

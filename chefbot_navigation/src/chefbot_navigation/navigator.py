@@ -192,18 +192,20 @@ def pose_age_fault(age: float, tolerance: float, parent: str, child: str,
     if age <= tolerance:
         return ""
     text = f"transform {parent} -> {child} is {age:.2f} s old (transform_tolerance {tolerance} s)"
-    stale = link_fault(link, tolerance)
+    stale = link_fault(link, tolerance, child)
     return f"{text}; {stale}" if stale else text
 
 
-def link_fault(link: tuple[str, str, str, float] | None, tolerance: float) -> str:
+def link_fault(link: tuple[str, str, str, float] | None, tolerance: float, base: str = "") -> str:
     """``stale link map -> odom (from /amcl), not updated for 3.20 s`` when ``link`` (see
     :func:`stalest_link`) is older than ``tolerance`` s, else ''.  Also explains a failed lookup:
     once the dead link's last transform falls out of the tf cache, tf2 reports only an
-    extrapolation error."""
+    extrapolation error.  A stale link ending in the robot's ``base`` frame is the odometry's:
+    the text says so (drive, board link or encoders down)."""
     if link is None or link[3] <= tolerance:
         return ""
-    return f"stale link {link[0]} -> {link[1]} (from {link[2]}), not updated for {link[3]:.2f} s"
+    hint = " (no odometry: drive, board link or encoders down?)" if base and link[1] == base else ""
+    return f"stale link {link[0]} -> {link[1]} (from {link[2]}), not updated for {link[3]:.2f} s{hint}"
 
 
 def stalest_link(frames: dict[str, Any], child: str, root: str,

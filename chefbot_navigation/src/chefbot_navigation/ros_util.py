@@ -153,11 +153,12 @@ class PlanarTf:
         return transform_to_pose2d(t), t.header.stamp.to_sec(), ""
 
     def fresh_pose(self, child: str, tolerance: float) -> tuple[Pose2D | None, str]:
-        """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why."""
+        """Latest pose of ``child`` if at most ``tolerance`` s old, else None and why (naming the
+        stalest link of the chain and who publishes it, e.g. diff_tf's odom -> base_footprint)."""
         pose, stamp, why = self.lookup(child)
         now = rospy.get_time()
         if why:     # e.g. extrapolation into the past once a dead node's last transform left the cache
-            stale = link_fault(self.stalest_link(child, now), tolerance)
+            stale = link_fault(self.stalest_link(child, now), tolerance, child)
             why = f"{stale}; {why}" if stale else why
         elif now - stamp > tolerance:
             why = pose_age_fault(now - stamp, tolerance, self.global_frame, child, self.stalest_link(child, now))

@@ -77,3 +77,32 @@ def test_periodic_keeps_running_after_exceptions() -> None:
     assert thread.is_alive()
     assert thread.health.errors >= 2 and thread.health.calls >= 4
     assert len(logged) == 1 and "MemoryError" in logged[0]     # throttled: one line for many failures
+
+
+def test_stale_reason_names_the_silent_odometry() -> None:
+    """move_base's stale-pose reason names the stale tf link and its publisher (tf2's frames yaml),
+    with the odometry hint when the stale link is the one ending in the robot base."""
+    import rospy
+    import tf2_py
+    import yaml
+    from geometry_msgs.msg import TransformStamped
+
+    from chefbot_navigation.navigator import link_fault, stalest_link
+
+    def frames(map_odom: float, odom_base: float) -> dict:
+        buf = tf2_py.BufferCore()
+        for parent, child, stamp, who in (("map", "odom", map_odom, "/amcl"),
+                                          ("odom", "base_footprint", odom_base, "/diff_tf")):
+            t = TransformStamped()
+            t.header.frame_id, t.child_frame_id, t.header.stamp = parent, child, rospy.Time.from_sec(stamp)
+            t.transform.rotation.w = 1.0
+            buf.set_transform(t, who)
+        return yaml.safe_load(buf.all_frames_as_yaml())
+
+    link = stalest_link(frames(10.0, 4.0), "base_footprint", "map", 12.0)
+    assert link_fault(link, 0.5, "base_footprint") == (
+        "stale link odom -> base_footprint (from /diff_tf), not updated for 8.00 s "
+        "(no odometry: drive, board link or encoders down?)")
+    # amcl's link is the stale one: named, without the odometry hint
+    link = stalest_link(frames(4.0, 10.0), "base_footprint", "map", 12.0)
+    assert link_fault(link, 0.5, "base_footprint") == "stale link map -> odom (from /amcl), not updated for 8.00 s"

@@ -211,6 +211,31 @@ class FirmwareDrive:
         """Battery voltage (V) the board measures."""
         self.board.fw.set_battery_volts(float(volts))
 
+    # ------------------------------------------------------------ fault injection
+    @property
+    def plugged(self) -> bool:
+        """False between :meth:`unplug` and :meth:`replug`."""
+        return self.board.port.master >= 0
+
+    def unplug(self) -> None:
+        """Pull the LaunchPad's USB cable: the pty and ``link`` disappear, the driver's port fails;
+        the board keeps running on sim time (its 500 ms watchdog stops the motors).  Idempotent."""
+        if self.plugged:
+            self.board.unplug()
+
+    def replug(self) -> str:
+        """Plug it back in: a new pty (new :attr:`pty_path`) under the same ``link``; the board's
+        state (encoder counts, watchdog) carries on.  Returns the new pty path.  Idempotent."""
+        if not self.plugged:
+            self.board.reconnect(self.link or None)
+        return self.pty_path
+
+    def emit_garbage(self) -> int:
+        """A burst of malformed lines to the driver (``virtual_board.MALFORMED_BURST``: binary
+        noise, truncated lines, wrong field counts, huge numbers, NaN/inf, bad CRC, overlong);
+        returns how many lines (0 while unplugged)."""
+        return self.board.emit_garbage()
+
     def close(self) -> None:
         """Unplug: the pty and the symlink go away."""
         self.board.close()

@@ -257,3 +257,43 @@ def test_close_unplugs(urdf, tmp_path):
     assert link.is_symlink()
     sim.close()
     assert not link.exists() and not link.is_symlink()
+
+
+def test_fault_injection_unplug_replug_and_garbage(fw_sim, tmp_path):
+    """The sim node's ~unplug / ~replug / ~emit_garbage: the link disappears and comes back under the
+    same name on a new pty, the board runs on (its watchdog brakes), and every line of the garbage
+    burst is rejected and counted by the driver's own line handling."""
+    from chefbot_bringup.launchpad import LaunchpadCore
+    from chefbot_firmware.virtual_board import MALFORMED_BURST
+
+    sim, link = fw_sim
+    fw = sim.firmware
+    drive_with_commands(sim, link, 512, 512, 1.0)
+    assert fw.drive_state == "run" and fw.plugged
+    fw.unplug()
+    fw.unplug()                                   # idempotent
+    assert not fw.plugged and not (tmp_path / "lp").exists()
+    assert fw.emit_garbage() == 0                 # nobody to send to
+    t0 = sim.time
+    sim.step(STEPS_PER_S)                         # the board runs on: its watchdog stops the motors
+    assert fw.drive_state == "timeout" and fw.duties() == (0.0, 0.0)
+    assert sim.time > t0 + 0.9
+    new_path = fw.replug()
+    assert fw.replug() == new_path and fw.plugged  # idempotent
+    assert os.path.realpath(tmp_path / "lp") == new_path == sim.pty_path
+    link2 = Link(str(tmp_path / "lp"))
+    try:
+        core = LaunchpadCore(max_ticks_per_s=11200)
+        core.on_open(0.0)
+        sim.step(STEPS_PER_S // 4)
+        core.on_bytes(os.read(link2.fd, 65536), 0.1)
+        ok0, bad0 = core.stats.lines_ok, sum(core.stats.lines_bad.values())
+        assert ok0 > 5, "status lines flow again after the replug"
+        assert fw.emit_garbage() == len(MALFORMED_BURST)
+        sim.step(2)
+        core.on_bytes(os.read(link2.fd, 65536), 0.2)
+        bad = sum(core.stats.lines_bad.values()) - bad0
+        # the leading newline may cut a status line short: one extra bad line at most
+        assert len(MALFORMED_BURST) <= bad <= len(MALFORMED_BURST) + 1, core.stats.lines_bad
+    finally:
+        link2.close()

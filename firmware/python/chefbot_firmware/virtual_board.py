@@ -23,6 +23,24 @@ from pathlib import Path
 
 from chefbot_firmware.host import LEFT, RIGHT, FirmwareHost
 
+# Malformed board lines for fault injection (VirtualBoard.emit_garbage): each one must be
+# rejected (and counted) by a correct driver, none may move odometry or the robot.  The burst
+# starts with a newline so a status line cut off by it is also just one bad line.
+MALFORMED_BURST: tuple[bytes, ...] = (
+    b"\xff\xfe\x00\x01\x80\x9b\xc3",          # binary noise
+    b"e\t1234b\t12.3",                             # a truncated line run into the next one
+    b"e",                                           # wrong field count (no fields)
+    b"e\t5",                                        # wrong field count (one of two)
+    b"u",                                           # wrong field count
+    b"e\t99999999999999999999\t0",                  # huge number (beyond Int32)
+    b"b\t1e309",                                    # huge number (float overflow)
+    b"e\tnan\t5",                                   # NaN
+    b"b\tnan",                                      # NaN
+    b"u\tinf",                                      # inf
+    b"i\t0.1\t0.2\tNaN\t0.9",                       # NaN in a quaternion
+    b"e\t1\t2\t*00",                                # bad checksum
+    b"x" * 500,                                     # overlong
+)
 EDGES_PER_REV = 8400            # quadrature edges per wheel revolution (64 CPR x 131.25 gear, 4X)
 FREE_SPEED_RAD_S = 80 * 2 * math.pi / 60  # Pololu 37D 80 RPM at 12 V, full duty
 
@@ -170,6 +188,19 @@ class VirtualBoard:
         out = self.fw.read_tx()
         if out and not self.silent:
             self.port.write(out)
+
+    def emit_garbage(self, lines: tuple[bytes, ...] = MALFORMED_BURST) -> int:
+        """Send ``lines`` (default :data:`MALFORMED_BURST`) to the driver between the board's own
+        lines (a noisy cable, a brown-out mid-line); returns how many were sent (0 when unplugged)."""
+        if self.port.master < 0:
+            return 0
+        self.port.write(b"\n" + b"\n".join(lines) + b"\n")
+        return len(lines)
+
+    def unplug(self) -> None:
+        """Pull the USB cable: the pty and the symlink go away; the firmware keeps running
+        (its watchdog stops the motors once commands stop) until :meth:`reconnect`."""
+        self.port.close()
 
     def reconnect(self, link: str | os.PathLike | None = None) -> None:
         """Unplug and plug back in: a new pty (new path), the same symlink."""
