@@ -19,7 +19,13 @@ Differences from the book's ``pid_velocity`` and why:
   state are reset, and ``dt`` is capped, so the first step after idle does
   not integrate the whole idle time as the book's did.
 * Optional feed-forward ``target / max_speed * out_max`` so the PID only
-  corrects the error instead of carrying the whole command.
+  corrects the error instead of carrying the whole command; with
+  ``static_friction`` f (fraction of out_max the motor needs before the wheel
+  turns: gearbox and brush friction) it is ``f + (1 - f) * target / max_speed``
+  of out_max in the target's direction, the inverse of a DC motor's
+  torque-speed line with Coulomb friction.  Without it a slow target (the last
+  centimetres to a table, the last degrees of a turn) gets a command inside the
+  dead band and the wheel creeps until the integrator has wound up.
 * Stale feedback: with no encoder reading for ``feedback_timeout`` (a board
   that stopped talking, a dead driver) there is nothing to control against;
   the controller commands 0 and keeps its integrator reset instead of
@@ -59,6 +65,7 @@ class PidConfig:
     vel_threshold: float = 0.001   # ~vel_threshold, speeds below this read as 0 (m/s)
     max_speed: float = 0.377       # ~max_speed, wheel speed at out_max (m/s), for feed-forward
     feed_forward: bool = True      # ~feed_forward, add target/max_speed*out_max to the output
+    static_friction: float = 0.0   # ~static_friction, fraction of out_max needed to turn the wheel (0..0.5)
     encoder_timeout: float = 0.2   # ~encoder_timeout, silence after which the stop bound applies (s)
     feedback_timeout: float = 0.5  # ~feedback_timeout, no encoder reading this long: command 0, no integration (s)
     event_driven: bool = True      # ~event_driven, step at once on a new target (False: only on the loop tick)
@@ -76,6 +83,8 @@ class PidConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if not (math.isfinite(self.static_friction) and 0.0 <= self.static_friction <= 0.5):
+            raise ValueError(f"static_friction must be in [0, 0.5] (fraction of out_max), got {self.static_friction!r}")
         if not self.out_min < self.out_max:
             raise ValueError(f"out_min ({self.out_min}) must be less than out_max ({self.out_max})")
         if int(self.timeout_ticks) != self.timeout_ticks or self.timeout_ticks < 1:
@@ -155,9 +164,11 @@ class VelocityPid:
     def feed_forward(self, target: float) -> float:
         """Open-loop command for ``target`` m/s (output units)."""
         cfg = self.cfg
-        if not cfg.feed_forward:
+        if not cfg.feed_forward or abs(target) < cfg.vel_threshold:
             return 0.0
-        return target / cfg.max_speed * (cfg.out_max if target >= 0 else -cfg.out_min)
+        f = cfg.static_friction
+        span = cfg.out_max if target >= 0 else -cfg.out_min
+        return math.copysign(f * span, target) + (1.0 - f) * target / cfg.max_speed * span
 
     def step(self, target: float, measured: float, dt: float) -> float:
         """One control step; returns the clamped motor command (output units)."""

@@ -205,13 +205,15 @@ def test_bad_config(field, value):
 
 
 def simulate_step(react: bool, target: float = 0.2, t_step: float = 0.0123, seconds: float = 3.0,
-                  tau: float = 0.08, motor_gain: float = 0.97):
+                  tau: float = 0.08, motor_gain: float = 0.97, friction: float = 0.0, static_friction: float = 0.0):
     """Wheel = first-order motor (time constant ``tau`` s, steady speed ``motor_gain`` x the
     feed-forward's guess, so the PID has work to do); targets arrive at 50 Hz from ``t_step``,
     encoder readings at 100 Hz, the loop ticks at 30 Hz; with ``react`` each new target is
-    also acted on at once.  Returns [(t, speed)] every 1 ms and the first time a non-zero
-    command was applied."""
-    cfg = PidConfig(ticks_meter=29708.0)
+    also acted on at once.  ``friction``: the motor's Coulomb friction as a fraction of full
+    duty (duties below it do not turn the wheel; the rest maps linearly onto the speed), and
+    ``static_friction`` the PID's guess of it.  Returns [(t, speed)] every 1 ms and the first
+    time a non-zero command was applied."""
+    cfg = PidConfig(ticks_meter=29708.0, static_friction=static_friction)
     ctrl = WheelController(cfg)
     dt = 0.001
     v = pos = cmd = 0.0
@@ -220,7 +222,9 @@ def simulate_step(react: bool, target: float = 0.2, t_step: float = 0.0123, seco
     next_tick, next_target, next_reading = 1 / 30, t_step, 0.0
     for k in range(1, round(seconds / dt) + 1):
         t = k * dt
-        v += (motor_gain * cmd / cfg.out_max * cfg.max_speed - v) * dt / tau
+        duty = cmd / cfg.out_max
+        drive = math.copysign(max(abs(duty) - friction, 0.0) / (1.0 - friction), duty)
+        v += (motor_gain * drive * cfg.max_speed - v) * dt / tau
         pos += v * dt
         if t >= next_reading - 1e-12:
             ctrl.add_reading(round(pos * cfg.ticks_meter), t)
@@ -254,6 +258,33 @@ def test_step_response_bounds(react):
     assert all(abs(v - target) <= 0.03 * target for t, v in trace if t >= 0.5)   # within 3 % after 0.5 s
     err_1s = target - next(v for t, v in trace if t >= 1.0)
     assert 0 < target - trace[-1][1] < err_1s                          # and the integral keeps closing the gap
+
+
+@pytest.mark.parametrize("target", [0.02, -0.0225, 0.2])
+def test_static_friction_feed_forward_reaches_slow_targets(target):
+    """A motor that needs 3.6 % duty to turn (the 37D's friction): a slow target (the last
+    centimetres to a table; 0.0225 m/s is the controller's slowest turn on the spot) is
+    reached in well under a second with ``static_friction``; the plain feed-forward creeps
+    until the integrator has wound up.  Fast targets keep the step-response bounds."""
+    def t90(trace):
+        return next((t for t, v in trace if abs(v) >= 0.9 * abs(target)), math.inf)
+
+    plain, _ = simulate_step(True, target, friction=0.036)
+    comp, _ = simulate_step(True, target, friction=0.036, static_friction=0.036)
+    assert t90(comp) <= 0.3
+    if abs(target) < 0.05:
+        assert t90(plain) > 2.0 * t90(comp)
+    assert max(abs(v) for _, v in comp) <= 1.05 * abs(target)                        # no overshoot
+    assert all(abs(v - target) <= 0.05 * abs(target) for t, v in comp if t >= 0.6)
+
+
+def test_static_friction_feed_forward_values():
+    pid = VelocityPid(PidConfig(static_friction=0.036))
+    assert pid.feed_forward(0.0) == 0.0
+    assert pid.feed_forward(0.377) == pytest.approx(1023.0)
+    assert pid.feed_forward(-0.02) == pytest.approx(-(0.036 + 0.964 * 0.02 / 0.377) * 1023.0)
+    with pytest.raises(ValueError, match="static_friction"):
+        PidConfig(static_friction=0.7)
 
 
 def test_reacting_to_a_new_target_starts_at_once_and_keeps_the_steady_state():
