@@ -422,7 +422,7 @@ def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
 
 
 PENALTY = 100.0   # x the costliest passable cell: weight of a blocked cell in a coarse block
-MIN_CROP = 8      # coarse cells: least margin of the coarse search's box around start and goal
+MIN_CROP = 24     # coarse cells: least margin of the coarse search box (6 m at 5 cm x 5: an office room)
 _OFFSETS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 _DR = np.array([d[0] for d in _OFFSETS])
 _DC = np.array([d[1] for d in _OFFSETS])
