@@ -68,6 +68,8 @@ class PlannerParams:
             raise ValueError(f"path_resolution must be > 0 m, got {self.path_resolution}")
         if self.coarse_factor < 2 or self.corridor_margin < 1:
             raise ValueError("coarse_factor must be >= 2 and corridor_margin >= 1")
+        if not (math.isfinite(self.coarse_crop) and self.coarse_crop >= 0.0):
+            raise ValueError(f"coarse_crop must be a finite number >= 0, got {self.coarse_crop}")
 
 
 @dataclass

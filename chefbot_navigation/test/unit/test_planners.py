@@ -197,3 +197,9 @@ def test_hierarchical_unreachable_goal_reported(crop: float) -> None:
         planner.plan(cm, (1.0, 1.0), (8.0, 8.0))
     assert err.value.kind == "no_path"
     assert "unreachable" in err.value.reason
+
+
+@pytest.mark.parametrize("crop", [-0.1, float("nan"), float("inf")])
+def test_bad_coarse_crop_named(crop: float) -> None:
+    with pytest.raises(ValueError, match="coarse_crop must be a finite number >= 0"):
+        PlannerParams(coarse_crop=crop)
