@@ -22,6 +22,7 @@ Cell traversal cost = neutral_cost + cost_factor * cost / 252 for costs below
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass
 from typing import Protocol
@@ -221,6 +222,9 @@ class DijkstraPlanner:
         self.robot_radius = robot_radius
         self.cache = GridCache()
         self._start_freed = False    # the last _prepare gave the start area a way out (costs differ from cache)
+        # the cache and _start_freed are per plan: one plan at a time per instance (move_base plans
+        # under its own lock already; this keeps other callers' threads safe too)
+        self._lock = threading.Lock()
 
     def _prepare(self, costmap: Costmap, start, goal) -> tuple[np.ndarray, tuple[int, int], tuple[int, int]]:
         s, g = _check_endpoints(costmap, start, goal, self.params)
@@ -237,8 +241,9 @@ class DijkstraPlanner:
     def plan(self, costmap: Costmap, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
         """Cheapest path from ``start`` to ``goal`` (m) on the costmap; PlanningError if none."""
         t0 = time.perf_counter()
-        costs, s, g = self._prepare(costmap, start, goal)
-        cells = self._grid_path(costs, s, g)
+        with self._lock:
+            costs, s, g = self._prepare(costmap, start, goal)
+            cells = self._grid_path(costs, s, g)
         if cells is None:
             raise PlanningError("no_path", f"no path from ({start[0]:.4g}, {start[1]:.4g}) to goal "
                                 f"({goal[0]:.4g}, {goal[1]:.4g}): it is unreachable")
