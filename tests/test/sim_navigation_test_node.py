@@ -101,6 +101,22 @@ def connect_sim_client(cls: type, timeout: float = 120.0) -> None:
     wait_for(lambda: bool(cls.truth.hist), timeout, "ground truth", stop=rospy.is_shutdown)
 
 
+def reach(test: unittest.TestCase, client: actionlib.SimpleActionClient, truth: Truth, name: str, target,
+          sent_at: float | None = None, wall_timeout: float = WALL_TIMEOUT) -> tuple[float, float, float]:
+    """Send the robot to ``target`` (unless already sent at sim time ``sent_at``), require SUCCEEDED and
+    wait until it is at rest; returns (sim s taken, ground-truth position error m, heading error rad)."""
+    t0 = rospy.get_time() if sent_at is None else sent_at
+    if sent_at is None:
+        client.send_goal(goal_for(target))
+    test.assertTrue(client.wait_for_result(rospy.Duration(wall_timeout)), f"{name}: no result")
+    took = rospy.get_time() - t0
+    test.assertEqual(client.get_state(), GoalStatus.SUCCEEDED, f"{name}: {client.get_goal_status_text()}")
+    # judge after the robot has settled (the sim's wheels coast a little after the zero command)
+    wait_for(lambda: truth.speed() < 0.005, 60.0, "robot at rest")
+    _, x, y, yaw = truth.latest()
+    return took, math.hypot(x - target.x, y - target.y), abs(wrap_angle(yaw - target.yaw))
+
+
 class SimNavigationTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
@@ -109,18 +125,7 @@ class SimNavigationTest(unittest.TestCase):
 
     def deliver(self, name: str, sent_at: float | None = None) -> float:
         """Send the robot to a named pose (unless already sent at ``sent_at``); returns the sim time it took."""
-        target = self.tables[name]
-        t0 = rospy.get_time() if sent_at is None else sent_at
-        if sent_at is None:
-            self.client.send_goal(goal_for(target))
-        self.assertTrue(self.client.wait_for_result(rospy.Duration(WALL_TIMEOUT)), f"{name}: no result")
-        took = rospy.get_time() - t0
-        self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED,
-                         f"{name}: {self.client.get_goal_status_text()}")
-        # judge after the robot has settled (the sim's wheels coast a little after the zero command)
-        wait_for(lambda: self.truth.speed() < 0.005, 60.0, "robot at rest")
-        _, x, y, yaw = self.truth.latest()
-        err_xy, err_yaw = math.hypot(x - target.x, y - target.y), abs(wrap_angle(yaw - target.yaw))
+        took, err_xy, err_yaw = reach(self, self.client, self.truth, name, self.tables[name], sent_at)
         rospy.loginfo("sim_navigation: %s reached in %.1f s sim time, error %.3f m %.3f rad", name, took,
                       err_xy, err_yaw)
         print(f"[figure] {name}: {took:.1f} s sim, error {err_xy:.3f} m / {err_yaw:.3f} rad", flush=True)

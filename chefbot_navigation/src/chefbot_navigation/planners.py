@@ -22,6 +22,7 @@ Cell traversal cost = neutral_cost + cost_factor * cost / 252 for costs below
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass
 from typing import Protocol
@@ -57,6 +58,7 @@ class PlannerParams:
     full_search_cells: int = 250_000   # hierarchical: plan exactly below this many cells
     coarse_factor: int = 5             # hierarchical: cells per coarse cell (per axis)
     corridor_margin: int = 3           # hierarchical: coarse cells around the coarse path
+    coarse_crop: float = 0.2           # hierarchical: coarse search box margin, x start-goal distance (0 = whole map)
 
     def __post_init__(self) -> None:
         if not self.neutral_cost > 0.0:
@@ -67,6 +69,8 @@ class PlannerParams:
             raise ValueError(f"path_resolution must be > 0 m, got {self.path_resolution}")
         if self.coarse_factor < 2 or self.corridor_margin < 1:
             raise ValueError("coarse_factor must be >= 2 and corridor_margin >= 1")
+        if not (math.isfinite(self.coarse_crop) and self.coarse_crop >= 0.0):
+            raise ValueError(f"coarse_crop must be a finite number >= 0, got {self.coarse_crop}")
 
 
 @dataclass
@@ -170,9 +174,10 @@ def _segment_ok(costs: np.ndarray, a: np.ndarray, b: np.ndarray, sub_cost: np.nd
     t = np.linspace(0.0, 1.0, n)
     rr = np.rint(a[0] + d[:, 0, None] * t[None, :]).astype(np.int64)
     cc = np.rint(a[1] + d[:, 1, None] * t[None, :]).astype(np.int64)
-    c = costs[rr, cc]
-    line_cost = c.mean(axis=1) * length
-    return np.isfinite(c).all(axis=1) & (line_cost <= sub_cost * 1.0 + 1e-9)
+    c = costs.ravel()[rr * costs.shape[1] + cc]            # one flat gather
+    # an impassable sample makes the sum inf, and inf <= a finite sub-path cost is False
+    line_cost = c.sum(axis=1) / n * length
+    return line_cost <= sub_cost + 1e-9
 
 
 def smooth_path(cells: np.ndarray, costs: np.ndarray, lookahead: int = 80) -> np.ndarray:
@@ -215,11 +220,19 @@ class DijkstraPlanner:
     def __init__(self, params: PlannerParams, robot_radius: float = 0.2) -> None:
         self.params = params
         self.robot_radius = robot_radius
+        self.cache = GridCache()
+        self._start_freed = False    # the last _prepare gave the start area a way out (costs differ from cache)
+        # the cache and _start_freed are per plan: one plan at a time per instance (move_base plans
+        # under its own lock already; this keeps other callers' threads safe too)
+        self._lock = threading.Lock()
 
     def _prepare(self, costmap: Costmap, start, goal) -> tuple[np.ndarray, tuple[int, int], tuple[int, int]]:
         s, g = _check_endpoints(costmap, start, goal, self.params)
-        costs = cell_costs(costmap.cost, self.params)
-        _free_start(costs, costmap.cost, s, int(math.ceil(self.robot_radius / costmap.info.resolution)))
+        costs = self.cache.costs(costmap, self.params)
+        self._start_freed = not np.isfinite(costs[s])
+        if self._start_freed:      # rare: copy, the cached grid stays as the costmap says
+            costs = costs.copy()
+            _free_start(costs, costmap.cost, s, int(math.ceil(self.robot_radius / costmap.info.resolution)))
         return costs, s, g
 
     def _grid_path(self, costs: np.ndarray, s: tuple[int, int], g: tuple[int, int]) -> np.ndarray | None:
@@ -228,8 +241,9 @@ class DijkstraPlanner:
     def plan(self, costmap: Costmap, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
         """Cheapest path from ``start`` to ``goal`` (m) on the costmap; PlanningError if none."""
         t0 = time.perf_counter()
-        costs, s, g = self._prepare(costmap, start, goal)
-        cells = self._grid_path(costs, s, g)
+        with self._lock:
+            costs, s, g = self._prepare(costmap, start, goal)
+            cells = self._grid_path(costs, s, g)
         if cells is None:
             raise PlanningError("no_path", f"no path from ({start[0]:.4g}, {start[1]:.4g}) to goal "
                                 f"({goal[0]:.4g}, {goal[1]:.4g}): it is unreachable")
@@ -253,47 +267,131 @@ class HierarchicalPlanner(DijkstraPlanner):
             return _mcp_path(costs, s, g)
         k = p.coarse_factor
         h, w = costs.shape
-        H, W = -(-h // k), -(-w // k)
-        blocked = ~np.isfinite(costs)
-        # block mean with blocked cells counted at a large penalty: a coarse cell with a wall in it
-        # stays passable (a door may be narrower than a coarse cell) but is avoided when an open
-        # way exists, so the corridor search below rarely needs the full-grid fallback
-        penalty = np.float32(PENALTY * (p.neutral_cost + p.cost_factor))
-        pen = np.full((H * k, W * k), penalty, dtype=np.float32)
-        pen[:h, :w] = costs            # in place: np.where would allocate a float64 copy of the map
-        pen[:h, :w][blocked] = penalty
-        coarse = cv2.resize(pen, (W, H), interpolation=cv2.INTER_AREA).astype(np.float64)
-        full = np.ones((H * k, W * k), dtype=bool)       # 1 byte/cell (a float32 area resize took 4)
-        full[:h, :w] = blocked
-        coarse[full.reshape(H, k, W, k).all(axis=(1, 3))] = np.inf
+        # the coarse grid depends on the costmap only: cached with it (rebuilt when the start area was freed)
+        coarse = coarse_grid(costs, p) if self._start_freed else self.cache.coarse(p)
+        coarse = coarse.copy()
+        H, W = coarse.shape
         cs, cg = (s[0] // k, s[1] // k), (g[0] // k, g[1] // k)
         coarse[cs] = min(coarse[cs], costs[s])
         coarse[cg] = min(coarse[cg], costs[g])
-        cpath = _mcp_path(coarse, cs, cg)
+        cpath = _cropped_mcp_path(coarse, cs, cg, p.coarse_crop)
         if cpath is None:
             return None   # a coarse cell is blocked only if all its cells are: no fine path either
         mask = np.zeros((H, W), dtype=np.uint8)
         mask[cpath[:, 0], cpath[:, 1]] = 1
         mask = _dilate(mask, p.corridor_margin)
-        fine = np.repeat(np.repeat(mask, k, axis=0), k, axis=1)[:h, :w]
-        path = _corridor_path(costs, fine, s, g)
+        # expand only the corridor's bounding box to full resolution
+        rows, cols = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        r0, c0 = int(rows[0]), int(cols[0])
+        box = mask[r0:rows[-1] + 1, c0:cols[-1] + 1]
+        fine = np.repeat(np.repeat(box, k, axis=0), k, axis=1)[:h - r0 * k, :w - c0 * k]
+        path = _corridor_path(costs, fine, s, g, origin=(r0 * k, c0 * k))
         if path is None:
             return _mcp_path(costs, s, g)
         return path
 
 
+def coarse_grid(costs: np.ndarray, p: PlannerParams) -> np.ndarray:
+    """Block-averaged cost grid (``coarse_factor`` x coarser, float64) for the hierarchical planner.
+
+    Blocked cells count at a large penalty: a coarse cell with a wall in it
+    stays passable (a door may be narrower than a coarse cell) but is avoided
+    when an open way exists, so the corridor search rarely needs the full-grid
+    fallback.  A coarse cell is ``inf`` only if all its cells are blocked.
+    """
+    k = p.coarse_factor
+    h, w = costs.shape
+    H, W = -(-h // k), -(-w // k)
+    blocked = ~np.isfinite(costs)
+    penalty = np.float32(PENALTY * (p.neutral_cost + p.cost_factor))
+    pen = np.full((H * k, W * k), penalty, dtype=np.float32)
+    pen[:h, :w] = costs            # in place: np.where would allocate a float64 copy of the map
+    pen[:h, :w][blocked] = penalty
+    coarse = cv2.resize(pen, (W, H), interpolation=cv2.INTER_AREA).astype(np.float64)
+    full = np.ones((H * k, W * k), dtype=bool)       # 1 byte/cell (a float32 area resize took 4)
+    full[:h, :w] = blocked
+    coarse[full.reshape(H, k, W, k).all(axis=(1, 3))] = np.inf
+    return coarse
+
+
+class GridCache:
+    """Cost grids derived from one costmap, kept while the costmap's content is unchanged.
+
+    move_base replans at ``planner_frequency`` on a costmap that rarely changes
+    between plans; the per-cell traversal costs and the coarse grid are then
+    reused.  The key is the costmap's content (an exact byte comparison with a
+    kept copy, ~0.1 ms per M cells), its geometry and the planner params, so
+    an update in place, a new map or new params all invalidate it.  Cached
+    arrays are read-only.
+    """
+
+    def __init__(self) -> None:
+        self._cost: np.ndarray | None = None
+        self._key: tuple | None = None
+        self._costs: np.ndarray | None = None
+        self._coarse: np.ndarray | None = None
+        self.builds = 0     # how often the cost grid was (re)built (tests, diagnostics)
+
+    def costs(self, costmap: Costmap, params: PlannerParams) -> np.ndarray:
+        """Read-only traversal costs of ``costmap`` (see :func:`cell_costs`), rebuilt if it changed."""
+        key = (costmap.info, params)
+        cost = costmap.cost
+        if not (self._key == key and self._cost is not None and self._cost.shape == cost.shape
+                and np.array_equal(self._cost, cost)):
+            self._cost = cost.copy()
+            self._key = key
+            self._costs = cell_costs(cost, params)
+            self._costs.setflags(write=False)
+            self._coarse = None
+            self.builds += 1
+        return self._costs
+
+    def coarse(self, params: PlannerParams) -> np.ndarray:
+        """Read-only coarse grid of the costs last returned by :meth:`costs`."""
+        if self._costs is None:
+            raise RuntimeError("GridCache.coarse before GridCache.costs")
+        if self._coarse is None:
+            self._coarse = coarse_grid(self._costs, params)
+            self._coarse.setflags(write=False)
+        return self._coarse
+
+
+def _cropped_mcp_path(coarse: np.ndarray, cs: tuple[int, int], cg: tuple[int, int],
+                      crop: float) -> np.ndarray | None:
+    """Coarse path searched first in the bounding box of start and goal grown by ``crop`` x their
+    distance (at least ``MIN_CROP`` coarse cells), on the whole coarse grid if the box has no path.
+
+    Like the corridor, a heuristic stage: a detour leaving the box is not
+    considered (the exact search happens later, at full resolution in the
+    corridor); on the bench's office routes the box's coarse path cost equals
+    the whole grid's.  ``crop`` <= 0 searches the whole grid.
+    """
+    H, W = coarse.shape
+    if crop > 0:
+        m = int(max(MIN_CROP, crop * math.hypot(cs[0] - cg[0], cs[1] - cg[1])))
+        r0, r1 = max(min(cs[0], cg[0]) - m, 0), min(max(cs[0], cg[0]) + m + 1, H)
+        c0, c1 = max(min(cs[1], cg[1]) - m, 0), min(max(cs[1], cg[1]) + m + 1, W)
+        if (r1 - r0) * (c1 - c0) < H * W:
+            path = _mcp_path(coarse[r0:r1, c0:c1], (cs[0] - r0, cs[1] - c0), (cg[0] - r0, cg[1] - c0))
+            if path is not None:
+                return path + np.array([r0, c0])
+    return _mcp_path(coarse, cs, cg)
+
+
 def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
-                   g: tuple[int, int]) -> np.ndarray | None:
+                   g: tuple[int, int], origin: tuple[int, int] = (0, 0)) -> np.ndarray | None:
     """Exact Dijkstra restricted to the corridor cells (scipy csgraph on just those cells).
 
+    ``corridor`` is a mask of a window of ``costs`` whose first cell is ``origin`` (row, col).
     The work grows with the corridor's area, not with its bounding box, which
     matters for long diagonal routes across a large map.
     """
     rows = np.nonzero(corridor.any(axis=1))[0]
     cols = np.nonzero(corridor.any(axis=0))[0]
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    wr0, wc0 = rows[0], cols[0]
+    r0, r1, c0, c1 = wr0 + origin[0], rows[-1] + 1 + origin[0], wc0 + origin[1], cols[-1] + 1 + origin[1]
     sub = costs[r0:r1, c0:c1]
-    ok = corridor[r0:r1, c0:c1].astype(bool) & np.isfinite(sub)
+    ok = corridor[wr0:wr0 + sub.shape[0], wc0:wc0 + sub.shape[1]].astype(bool) & np.isfinite(sub)
     hb, wb = ok.shape
     ids = np.flatnonzero(ok)
     n = ids.size
@@ -306,20 +404,19 @@ def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
     if not (0 <= sr < hb and 0 <= sc < wb and 0 <= gr < hb and 0 <= gc < wb) or node[sr, sc] < 0 \
             or node[gr, gc] < 0:
         return None
+    # node table with a border of -1, so every neighbour lookup is in range; edges are built row by
+    # row in node order, which is CSR order already (no COO sort)
+    table = np.full((hb + 2, wb + 2), -1, dtype=np.int32)
+    table[1:-1, 1:-1] = node
     rr, cc = np.divmod(ids, wb)
+    flat = (rr + 1) * (wb + 2) + (cc + 1)                              # ids in the padded table
+    nb = table.ravel()[flat[:, None] + (_DR * (wb + 2) + _DC)]        # (n, 8) neighbour ids or -1
+    keep = nb >= 0
     c = sub.ravel()[ids]
-    src, dst, wt = [], [], []
-    for dr, dc in _OFFSETS:
-        nr, nc = rr + dr, cc + dc
-        inb = (nr >= 0) & (nr < hb) & (nc >= 0) & (nc < wb)
-        nb = np.full(n, -1, dtype=np.int32)
-        nb[inb] = node[nr[inb], nc[inb]]
-        keep = nb >= 0
-        i = np.nonzero(keep)[0]
-        src.append(i)
-        dst.append(nb[keep])
-        wt.append(math.hypot(dr, dc) * 0.5 * (c[i] + c[nb[keep]]))
-    graph = csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
+    wt = _STEP * (0.5 * (c[:, None] + c[np.where(keep, nb, 0)]))
+    indptr = np.zeros(n + 1, dtype=np.int32)
+    np.cumsum(keep.sum(axis=1), out=indptr[1:])
+    graph = csr_matrix((wt[keep], nb[keep], indptr), shape=(n, n))
     start, goal = int(node[sr, sc]), int(node[gr, gc])
     dist, pred = dijkstra(graph, directed=True, indices=start, return_predecessors=True)
     if not np.isfinite(dist[goal]):
@@ -332,7 +429,11 @@ def _corridor_path(costs: np.ndarray, corridor: np.ndarray, s: tuple[int, int],
 
 
 PENALTY = 100.0   # x the costliest passable cell: weight of a blocked cell in a coarse block
+MIN_CROP = 24     # coarse cells: least margin of the coarse search box (6 m at 5 cm x 5: an office room)
 _OFFSETS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+_DR = np.array([d[0] for d in _OFFSETS])
+_DC = np.array([d[1] for d in _OFFSETS])
+_STEP = np.hypot(_DR, _DC)
 
 
 def _dilate(mask: np.ndarray, m: int) -> np.ndarray:

@@ -121,3 +121,85 @@ def test_hierarchical_close_to_exact_on_office_map() -> None:
         goal = tuple(float(v) for v in cm.info.cell_to_world(b[0], b[1]))
         plan = planner.plan(cm, start, goal)
         assert plan.cost <= 1.02 * ref
+
+
+def walled_map(n: int = 200) -> Costmap:
+    """Free square with a thick wall (cols 95-104) from the top down to row 185: the way round is far."""
+    cost = np.zeros((n, n), dtype=np.uint8)
+    cost[:186, 95:105] = LETHAL
+    return Costmap(GridInfo(0.05, n, n, 0.0, 0.0, 0.0), cost)
+
+
+def test_cache_reused_while_costmap_unchanged_and_rebuilt_when_it_changes() -> None:
+    cm = walled_map()
+    planner = make_planner("hierarchical", PlannerParams(full_search_cells=1000))
+    a, b = (1.0, 9.5), (9.0, 9.5)              # (x, y): below the wall's end, either side
+    first = planner.plan(cm, a, b)
+    assert planner.cache.builds == 1
+    # an equal costmap in a new object (move_base's master() each cycle): no rebuild, same plan
+    again = planner.plan(Costmap(cm.info, cm.cost.copy()), a, b)
+    assert planner.cache.builds == 1
+    np.testing.assert_array_equal(again.cells, first.cells)
+    # changed in place: close the gap below the wall -> rebuilt, the goal is now unreachable
+    cm.cost[186:, 95:105] = LETHAL
+    with pytest.raises(PlanningError) as err:
+        planner.plan(cm, a, b)
+    assert err.value.kind == "no_path" and "unreachable" in err.value.reason
+    assert planner.cache.builds == 2
+    # reopened: a plan again, through the gap, from the rebuilt grid
+    cm.cost[186:, 95:105] = 0
+    plan = planner.plan(cm, a, b)
+    assert planner.cache.builds == 3
+    assert plan.cost == pytest.approx(first.cost)
+    # a new geometry (origin moved) is a new map even with equal cells
+    shifted = Costmap(GridInfo(0.05, 200, 200, 1.0, 0.0, 0.0), cm.cost.copy())
+    planner.plan(shifted, (2.0, 9.5), (10.0, 9.5))
+    assert planner.cache.builds == 4
+
+
+def test_cached_grid_is_read_only_and_not_changed_by_a_start_in_the_inscribed_zone() -> None:
+    cost = np.zeros((40, 40), dtype=np.uint8)
+    cost[:, 20] = LETHAL
+    cost[:, 17:20] = INSCRIBED
+    cm = Costmap(GridInfo(0.05, 40, 40, 0.0, 0.0, 0.0), cost)
+    planner = make_planner("dijkstra", PlannerParams())
+    planner.plan(cm, (0.93, 1.0), (0.2, 1.0))               # starts in the inscribed zone
+    costs = planner.cache.costs(cm, planner.params)
+    assert planner.cache.builds == 1
+    assert not costs.flags.writeable
+    assert np.all(np.isinf(costs[:, 17:21]))                # the way out was made on a copy
+    with pytest.raises(PlanningError) as err:               # so a goal in that zone is still refused
+        planner.plan(cm, (0.2, 1.0), (0.93, 1.0))
+    assert err.value.kind == "goal_too_close"
+
+
+def test_coarse_search_box_without_a_path_falls_back_to_the_whole_grid() -> None:
+    """Start and goal either side of a long wall: the cropped coarse box holds no way round."""
+    cm = walled_map()
+    params = PlannerParams(full_search_cells=1000)
+    costs = cell_costs(cm.cost, params)
+    s, g = (10, 80), (10, 120)                               # (row, col), near the top
+    ref = exact_cost(costs, s, g)
+    start = tuple(float(v) for v in cm.info.cell_to_world(*s))
+    goal = tuple(float(v) for v in cm.info.cell_to_world(*g))
+    plan = make_planner("hierarchical", params).plan(cm, start, goal)
+    assert plan.cells[:, 0].max() >= 186                     # round the wall's end
+    assert ref - 1e-9 <= plan.cost <= 1.02 * ref
+
+
+@pytest.mark.parametrize("crop", [0.0, 0.2])
+def test_hierarchical_unreachable_goal_reported(crop: float) -> None:
+    cm = walled_map()
+    cm.cost[150:170, 150:170] = LETHAL
+    cm.cost[155:165, 155:165] = 0                            # a free pocket walled all round
+    planner = make_planner("hierarchical", PlannerParams(full_search_cells=1000, coarse_crop=crop))
+    with pytest.raises(PlanningError) as err:
+        planner.plan(cm, (1.0, 1.0), (8.0, 8.0))
+    assert err.value.kind == "no_path"
+    assert "unreachable" in err.value.reason
+
+
+@pytest.mark.parametrize("crop", [-0.1, float("nan"), float("inf")])
+def test_bad_coarse_crop_named(crop: float) -> None:
+    with pytest.raises(ValueError, match="coarse_crop must be a finite number >= 0"):
+        PlannerParams(coarse_crop=crop)
