@@ -3,6 +3,8 @@ back and exceptions (:func:`periodic`), a ``diagnostics`` publisher (:class:`Dia
 tf lookups (:class:`PlanarTf`), a wall-clock wait for an action server (:func:`wait_for_action_server`)."""
 from __future__ import annotations
 
+import dataclasses
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -12,8 +14,11 @@ import rospy
 import tf2_ros
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import OccupancyGrid
+from nav_msgs.srv import GetMap
 
 from chefbot_common.geometry import Pose2D
+from chefbot_common.params import ParamError, read_config
 from chefbot_navigation.health import TaskHealth
 from chefbot_navigation.navigator import link_fault, pose_age_fault, stalest_link
 from chefbot_navigation.ros_io import transform_to_pose2d
@@ -107,6 +112,29 @@ def lookup_transform_wall(buffer: tf2_ros.Buffer, target: str, source: str, stam
             and not rospy.is_shutdown():
         time.sleep(0.005)
     return buffer.lookup_transform(target, source, stamp)
+
+
+def read_private_config(cls: type, who: str) -> Any | None:
+    """``cls`` (a config dataclass) from the node's private params named as its fields; None after
+    logging the ParamError (and printing it to stderr, which roslaunch shows) naming the param."""
+    try:
+        return read_config(cls, rospy.get_param, {f.name: f"~{f.name}" for f in dataclasses.fields(cls)})
+    except ParamError as exc:
+        rospy.logfatal(f"{who}: {exc}")
+        print(f"{who}: {exc}", file=sys.stderr)
+        return None
+
+
+def static_map(who: str, service: str = "static_map") -> OccupancyGrid | None:
+    """The map from map_server's GetMap ``service`` (waits for it); None, logged, if it fails.
+    A shutdown while waiting (map_server died and roslaunch stops the launch) is no error."""
+    try:
+        rospy.wait_for_service(service)
+        return rospy.ServiceProxy(service, GetMap)().map
+    except (rospy.ROSInterruptException, rospy.ServiceException) as exc:
+        if not rospy.is_shutdown():
+            rospy.logerr(f"{who}: no map from service '{service}': {exc}")
+        return None
 
 
 def wait_for_action_server(client, timeout_s: float) -> bool:
