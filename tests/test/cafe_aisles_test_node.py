@@ -1,9 +1,7 @@
 #!/usr/bin/env python3
 """rostest node for cafe_aisles.test: deliver to every table of the cafe (aisles 0.50-0.90 m) and home.
 
-Localization is our amcl on noisy wheel odometry (the simulator's ground truth only judges).
-Per leg (sim time): zero bumper contacts; aisles >= 0.60 m reached within XY_TOL / YAW_TOL of ground
-truth; narrower ones reached or refused
+Per leg (sim time): zero bumper contacts; aisles >= 0.60 m reached; narrower ones reached or refused
 with the reason within 10 s of the robot stopping there; time <= 1.5 x the leg's time-optimal limit
 (issue: path length / 0.35 m/s + heading changes at the max angular rate -- chefbot_navigation.time_limit
 .simple_limit on the first global plan; the velocity-profile limit is printed beside it).
@@ -36,10 +34,6 @@ from chefbot_navigation.time_limit import MotionLimits, profile_limit, simple_li
 
 PKG = "chefbot_tests"
 WALL_TIMEOUT = 900.0
-# m, rad: final ground-truth error with amcl localizing (the looser bound of amcl_sim.test's deliveries;
-# `make demo` measures the 0.05 m / 0.05 rad figure in the hotel).  The cafe is harder for a 58-degree
-# camera: home faces down a 7 m corridor and is approached facing the west wall 0.5 m away (blind).
-XY_TOL, YAW_TOL = 0.10, 0.10
 AISLE = {"table_n1": 0.90, "table_n2": 0.75, "table_n3": 0.60, "table_n4": 0.62, "table_s1": 0.65,
          "table_s2": 0.55, "table_s3": 0.50, "table_s4": 0.70}     # m, clear width (cafe.yaml)
 
@@ -102,8 +96,7 @@ class CafeAislesTest(unittest.TestCase):
             self.assertTrue(blocked, states)
             self.assertLessEqual(rospy.get_time() - blocked[0], 10.0 + 5.0, "refusal slower than 10 s")
             return "refused", took, simple, profile
-        self.assertLessEqual(err, XY_TOL, f"{name}: final position error {err:.3f} m")
-        self.assertLessEqual(abs(wrap_angle(yaw - target.yaw)), YAW_TOL, f"{name}: final yaw error")
+        self.assertLessEqual(err, 0.05, f"{name}: final position error {err:.3f} m")
         self.assertLessEqual(took, 1.5 * simple, f"{name}: {took:.1f} s > 1.5 x {simple:.1f} s")
         return "reached", took, simple, profile
 
