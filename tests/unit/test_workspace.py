@@ -100,3 +100,13 @@ def test_requirements_are_pinned_with_hashes() -> None:
 def test_venv_python_sees_rospy_and_pypi() -> None:
     for mod in ("rospy", "roslaunch", "actionlib", "tf2_ros", "numpy", "pybullet", "PyQt5", "serial", "xacro"):
         importlib.import_module(mod)
+
+
+def test_no_merge_conflict_markers() -> None:
+    """No tracked file keeps a merge's conflict markers (a CMakeLists.txt with them breaks a fresh
+    build while an incremental one, with CMake's cache, still passes)."""
+    out = subprocess.run(["git", "grep", "-n", "-E", r"^(<<<<<<< |>>>>>>> )"], cwd=ROOT, capture_output=True,
+                         text=True, check=False)
+    if out.returncode not in (0, 1):
+        pytest.skip(f"not a git checkout: {out.stderr.strip()}")
+    assert out.stdout == "", f"conflict markers:\n{out.stdout}"
