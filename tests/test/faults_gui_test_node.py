@@ -107,14 +107,11 @@ class FaultsGuiTest(unittest.TestCase):
             time.sleep(0.02)
 
     def click_table(self, key: str) -> None:
-        lst = self.window.tableList
-        for i in range(lst.count()):
-            item = lst.item(i)
-            if item.data(Qt.UserRole) == key:
-                lst.scrollToItem(item)
-                QTest.mouseClick(lst.viewport(), Qt.LeftButton, pos=lst.visualItemRect(item).center())
-                return
-        self.fail(f"{key} not in the GUI's table list")
+        item, lst = self.window.table_item(key), self.window.tableList
+        if item is None:
+            self.fail(f"{key} not in the GUI's table list")
+        lst.scrollToItem(item)
+        QTest.mouseClick(lst.viewport(), Qt.LeftButton, pos=lst.visualItemRect(item).center())
 
     def click_go(self) -> None:
         self.pump_until(self.window.goButton.isEnabled, "Go enabled")

@@ -208,6 +208,14 @@ class RobotGuiWindow(QWidget):
             return "wait"
         return "good"
 
+    def table_item(self, key: str):
+        """The table list's row of destination ``key`` (a QListWidgetItem), or None."""
+        for i in range(self.tableList.count()):
+            item = self.tableList.item(i)
+            if item.data(Qt.UserRole) == key:
+                return item
+        return None
+
     def _render_selection(self, key: str | None) -> None:
         for i in range(self.tableList.count()):
             item = self.tableList.item(i)

@@ -22,14 +22,10 @@ POSES = load_tables(TABLES)
 
 
 def click_table(qtbot, window, key: str) -> None:
-    lst = window.tableList
-    for i in range(lst.count()):
-        item = lst.item(i)
-        if item.data(Qt.UserRole) == key:
-            lst.scrollToItem(item)
-            qtbot.mouseClick(lst.viewport(), Qt.LeftButton, pos=lst.visualItemRect(item).center())
-            return
-    raise AssertionError(f"{key} not in the table list")
+    item = window.table_item(key)
+    assert item is not None, f"{key} not in the table list"
+    window.tableList.scrollToItem(item)
+    qtbot.mouseClick(window.tableList.viewport(), Qt.LeftButton, pos=window.tableList.visualItemRect(item).center())
 
 
 def click_when_enabled(qtbot, button) -> None:
