@@ -21,13 +21,9 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def group_members(pgid: int) -> list[int]:
-    """Live (non-zombie) processes of a process group, read from /proc.
-
-    ``killpg(pgid, 0)`` is not enough: it also succeeds for zombies, such as our
-    own not-yet-reaped child or orphans waiting for PID 1 to reap them.
-    """
-    members = []
+def _proc_table() -> dict[int, tuple[str, int, int, str]]:
+    """Every process in /proc: pid -> (state, ppid, pgrp, start time in clock ticks)."""
+    table = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
@@ -35,28 +31,88 @@ def group_members(pgid: int) -> list[int]:
             stat = (entry / "stat").read_text()
         except OSError:
             continue
-        # fields after the ")" that closes the command name: state ppid pgrp ...
+        # fields after the ")" that closes the command name: state ppid pgrp ... (starttime is the 20th)
         rest = stat[stat.rfind(")") + 2:].split()
-        if len(rest) > 2 and int(rest[2]) == pgid and rest[0] not in ("Z", "X"):
-            members.append(int(entry.name))
-    return members
+        if len(rest) > 19:
+            table[int(entry.name)] = (rest[0], int(rest[1]), int(rest[2]), rest[19])
+    return table
+
+
+def group_members(pgid: int) -> list[int]:
+    """Live (non-zombie) processes of a process group, read from /proc.
+
+    ``killpg(pgid, 0)`` is not enough: it also succeeds for zombies, such as our
+    own not-yet-reaped child or orphans waiting for PID 1 to reap them.
+    """
+    return [pid for pid, (state, _, pgrp, _) in _proc_table().items()
+            if pgrp == pgid and state not in ("Z", "X")]
 
 
 def group_alive(pgid: int) -> bool:
     return bool(group_members(pgid))
 
 
+def group_tree(pgid: int) -> dict[int, str]:
+    """The live members of a process group and all their descendants: pid -> start time.
+
+    roslaunch starts every node (and roscore's rosmaster) in a session of its own
+    (``setsid``), so a node is a descendant of the group but not a member; once
+    roslaunch has died its nodes are orphans that no group signal reaches.
+    """
+    table = _proc_table()
+    children: dict[int, list[int]] = {}
+    for pid, (_, ppid, _, _) in table.items():
+        children.setdefault(ppid, []).append(pid)
+    todo = [pid for pid, (state, _, pgrp, _) in table.items() if pgrp == pgid and state not in ("Z", "X")]
+    tree: dict[int, str] = {}
+    while todo:
+        pid = todo.pop()
+        if pid in tree:
+            continue
+        tree[pid] = table[pid][3]
+        todo.extend(children.get(pid, []))
+    return {pid: start for pid, start in tree.items() if table[pid][0] not in ("Z", "X")}
+
+
+def _survivors(tracked: dict[int, str]) -> list[int]:
+    """The tracked processes still alive (same pid *and* start time: no reused pid)."""
+    table = _proc_table()
+    return [pid for pid, start in tracked.items()
+            if pid in table and table[pid][3] == start and table[pid][0] not in ("Z", "X")]
+
+
 def kill_group(pgid: int, grace_int: float = 5.0, grace_term: float = 3.0) -> None:
-    """Stop a process group: SIGINT (roslaunch shuts its nodes down), SIGTERM, then SIGKILL."""
+    """Stop a process group and everything it started.
+
+    SIGINT (roslaunch shuts its nodes down), SIGTERM, then SIGKILL to the group;
+    the group's descendants are recorded before and while signalling, and any of
+    them still alive at the end (a node roslaunch left behind when it was
+    killed) gets SIGTERM, then SIGKILL.
+    """
+    tracked = group_tree(pgid)
     for sig, grace in ((signal.SIGINT, grace_int), (signal.SIGTERM, grace_term), (signal.SIGKILL, 1.0)):
+        tracked.update(group_tree(pgid))
         try:
             os.killpg(pgid, sig)
         except ProcessLookupError:
-            return
+            break
         deadline = time.monotonic() + grace
-        while time.monotonic() < deadline:
-            if not group_alive(pgid):
-                return
+        while time.monotonic() < deadline and group_alive(pgid):
+            tracked.update(group_tree(pgid))
+            time.sleep(0.05)
+        if not group_alive(pgid):
+            break
+    for sig, grace in ((signal.SIGTERM, grace_term), (signal.SIGKILL, 1.0)):
+        survivors = _survivors(tracked)
+        if not survivors:
+            return
+        for pid in survivors:
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline and _survivors(tracked):
             time.sleep(0.05)
 
 

@@ -92,6 +92,25 @@ def test_kill_group_stops_children_that_ignore_sigint() -> None:
     assert not procs.group_alive(p.pid)
 
 
+def test_kill_group_stops_descendants_in_their_own_session() -> None:
+    # roslaunch starts each node with setsid: the node is outside roslaunch's group,
+    # and an orphan once roslaunch is killed. A launcher that ignores INT and TERM
+    # (killed) with such a child that ignores INT: the child must be gone too.
+    script = "trap '' INT TERM; setsid bash -c \"trap '' INT; sleep 60\" & wait"
+    p = subprocess.Popen(["bash", "-c", script], start_new_session=True)
+    deadline = time.monotonic() + 10
+    tree: dict[int, str] = {}
+    while time.monotonic() < deadline and len(tree) < 2:  # bash and the setsid child
+        tree = procs.group_tree(p.pid)
+        time.sleep(0.05)
+    assert len(tree) >= 2, tree
+    outsiders = [pid for pid in tree if pid not in procs.group_members(p.pid)]
+    assert outsiders, "the child should be in a session of its own"
+    procs.kill_group(p.pid, grace_int=0.3, grace_term=0.3)
+    p.wait(timeout=5)
+    assert procs._survivors(tree) == []
+
+
 def test_free_port_is_bindable() -> None:
     import socket
     port = procs.free_port()
