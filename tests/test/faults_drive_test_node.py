@@ -23,6 +23,7 @@ import rosgraph
 import rosnode
 import rospy
 import rostest
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
@@ -101,6 +102,8 @@ class FaultsDriveTest(unittest.TestCase):
         cls.tables = load_tables(rospy.get_param("~tables"))
         cls.truth = Truth()
         cls.drive = Drive()
+        cls.tf = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf)
         cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
         wait_for(lambda: bool(cls.truth.hist), 120.0, "ground truth")
@@ -136,8 +139,17 @@ class FaultsDriveTest(unittest.TestCase):
         target = self.tables[name]
         _, x, y, yaw = self.truth.latest()
         err_xy, err_yaw = math.hypot(x - target.x, y - target.y), abs(wrap_angle(yaw - target.yaw))
-        print(f"[figure] {self.id().split('.')[-1]}: {name} reached, error {err_xy:.3f} m / {err_yaw:.3f} rad",
-              flush=True)
+        # the pose move_base steers by (amcl's map->odom + odometry; the hotel map's frame is the world's):
+        # its error at rest tells a localization miss from a controller that stopped short
+        try:
+            tr = self.tf.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(2.0)).transform
+            q = tr.rotation
+            loc = (f"estimate off by {math.hypot(tr.translation.x - x, tr.translation.y - y):.3f} m / "
+                   f"{abs(wrap_angle(yaw_from_quaternion(q.x, q.y, q.z, q.w) - yaw)):.3f} rad")
+        except tf2_ros.TransformException as exc:
+            loc = f"no map -> base_footprint ({exc})"
+        print(f"[figure] {self.id().split('.')[-1]}: {name} reached, error {err_xy:.3f} m / {err_yaw:.3f} rad, "
+              f"{loc}", flush=True)
         self.assertLessEqual(err_xy, xy_tol, f"{name}: final position error {err_xy:.3f} m")
         self.assertLessEqual(err_yaw, YAW_TOL, f"{name}: final yaw error {err_yaw:.3f} rad")
 
