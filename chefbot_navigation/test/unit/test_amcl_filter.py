@@ -118,6 +118,48 @@ def test_kidnapped_robot_is_recovered_with_the_alphas_on() -> None:
     assert errors[-1][0] < 0.25 and errors[-1][1] < 0.25, errors[-1]
 
 
+def _two_clusters(pf: ParticleFilter, w_tracked: float) -> None:
+    """Half the particles at (2, 2, 0), half at the look-alike (6, 3, pi); weights w_tracked : 1 - w_tracked."""
+    rng = np.random.default_rng(1)
+    n = len(pf.particles) // 2
+    a = np.column_stack([2.0 + 0.02 * rng.standard_normal(n), 2.0 + 0.02 * rng.standard_normal(n), np.zeros(n)])
+    b = np.column_stack([6.0 + 0.02 * rng.standard_normal(n), 3.0 + 0.02 * rng.standard_normal(n),
+                         np.full(n, math.pi)])
+    pf.particles = np.concatenate([a, b])
+    pf.weights = np.concatenate([np.full(n, w_tracked / n), np.full(n, (1.0 - w_tracked) / n)])
+
+
+def test_estimate_stays_with_the_tracked_cluster_until_another_clearly_outweighs_it() -> None:
+    """A look-alike cluster (recovery injection) slightly heavier for an update must not move the
+    estimate; one switch_ratio times heavier does (a real kidnap), and switch_ratio 1 is amcl's rule."""
+    pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=400), np.random.default_rng(0))
+    pf.init_gaussian(Pose2D(2.0, 2.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
+    first, _, _ = pf.estimate()
+    assert math.hypot(first.x - 2.0, first.y - 2.0) < 0.05
+    # odometry moves the tracked pose along: 0.5 m ahead is still the same cluster after the step
+    pf.predict(Pose2D(0.0, 0.0, 0.0), Pose2D(0.5, 0.0, 0.0), DiffMotionNoise(0.0, 0.0, 0.0, 0.0))
+    assert pf.tracked is not None and abs(pf.tracked.x - 2.5) < 0.05
+    pf.tracked = Pose2D(2.0, 2.0, 0.0)
+    _two_clusters(pf, 0.3)                      # the look-alike 0.7 : 0.3 (< 3x)
+    est, _, cl = pf.estimate()
+    assert cl[0].mean[0] > 5.0                  # the look-alike is the heaviest ...
+    assert math.hypot(est.x - 2.0, est.y - 2.0) < 0.05 and pf.switches == 0   # ... yet the estimate stays
+    _two_clusters(pf, 0.2)                      # 0.8 : 0.2 = 4x: the tracked one is dying out
+    est, _, _ = pf.estimate()
+    assert math.hypot(est.x - 6.0, est.y - 3.0) < 0.05 and pf.switches == 1
+    amcl_rule = ParticleFilter(FilterConfig(min_particles=10, max_particles=400, switch_ratio=1.0),
+                               np.random.default_rng(0))
+    amcl_rule.tracked = Pose2D(2.0, 2.0, 0.0)
+    _two_clusters(amcl_rule, 0.45)
+    est, _, _ = amcl_rule.estimate()
+    assert est.x > 5.0                          # amcl: always the heaviest
+    with pytest.raises(ValueError, match="estimate_switch_ratio"):
+        FilterConfig(switch_ratio=0.5)
+    # a re-initialisation forgets the tracked pose
+    pf.init_gaussian(Pose2D(1.0, 1.0, 0.0), np.diag([1e-4, 1e-4, 1e-4]))
+    assert pf.tracked is None
+
+
 def test_recent_scans_are_carried_by_odometry_into_the_current_base_frame() -> None:
     """The recovery pool is scored on earlier scans too: their end points must follow the odometry."""
     pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=10, inject_scans=2, inject_beams=4),

@@ -36,6 +36,7 @@ from chefbot_navigation.amcl.resample import Cluster, clusters, kld_count, low_v
 from chefbot_navigation.amcl.sensor import LikelihoodField
 
 REFINE_JITTER = np.array([0.08, 0.08, 0.06])   # m, m, rad: stddev of the second round's copies
+TRACK_XY, TRACK_YAW = 0.5, 0.5                  # m, rad: a cluster this near the last estimate continues it
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,8 @@ class FilterConfig:
     inject_scans: int = 10         # recent scans (odometry-aligned) the candidates are scored on
     inject_beams: int = 180        # at most this many of their beams, evenly taken
     inject_refine: int = 4         # jittered copies per chosen candidate, scored in a second round (0: none)
+    switch_ratio: float = 3.0      # another cluster becomes the estimate only when this many times heavier
+                                   # than the one the estimate tracks (1: amcl's heaviest cluster, always)
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_particles <= self.max_particles:
@@ -68,6 +71,8 @@ class FilterConfig:
         if self.inject_scans < 1 or self.inject_beams < 2 or self.inject_refine < 0:
             raise ValueError(f"need inject_scans >= 1, inject_beams >= 2 and inject_refine >= 0, got "
                              f"{self.inject_scans}, {self.inject_beams}, {self.inject_refine}")
+        if not (math.isfinite(self.switch_ratio) and self.switch_ratio >= 1.0):
+            raise ValueError(f"estimate_switch_ratio must be a number >= 1, got {self.switch_ratio}")
         if self.alpha_slow > 0 and not self.alpha_fast > self.alpha_slow:
             raise ValueError(f"recovery_alpha_fast ({self.alpha_fast}) must exceed recovery_alpha_slow "
                              f"({self.alpha_slow})")
@@ -85,13 +90,16 @@ class ParticleFilter:
         # end points (B, 2) of recent weighings, each in the current base frame, and the last range_max
         self._recent: deque[np.ndarray] = deque(maxlen=cfg.inject_scans)
         self._range_max = math.inf
+        self.tracked: Pose2D | None = None   # the estimate's pose, carried along by odometry (map frame)
+        self.switches = 0                    # times the estimate moved to another cluster
 
     def _set(self, particles: np.ndarray, forget_scans: bool = True) -> None:
         self.particles = particles
         self.weights = np.full(len(particles), 1.0 / len(particles))
         self._reset_averages()
-        if forget_scans:
+        if forget_scans:      # a re-initialisation: nothing to track
             self._recent.clear()
+            self.tracked = None
 
     def _reset_averages(self) -> None:
         self.w_slow = self.w_fast = self._ema_slow = self._ema_fast = 0.0
@@ -117,6 +125,8 @@ class ParticleFilter:
     def predict(self, old: Pose2D, new: Pose2D, noise: DiffMotionNoise) -> None:
         """Motion update: move every particle by the odometry step ``old`` -> ``new`` plus noise."""
         self.particles = sample_motion(self.particles, old, new, noise, self.rng)
+        if self.tracked is not None:
+            self.tracked = self.tracked.compose(old.inverse().compose(new))
         if self._recent:     # earlier scans' end points, seen from the new base pose
             step = old.inverse().compose(new).inverse()
             c, s = math.cos(step.yaw), math.sin(step.yaw)
@@ -198,8 +208,27 @@ class ParticleFilter:
         return cand[low_variance_indices(w, n, self.rng)]
 
     def estimate(self) -> tuple[Pose2D, np.ndarray, list[Cluster]]:
-        """(heaviest cluster's mean pose, covariance 3x3 of the whole set, clusters heaviest first)."""
+        """(the estimate: a cluster's mean pose, covariance 3x3 of the whole set, clusters heaviest first).
+
+        amcl reports the heaviest cluster.  With recovery injection on, particles are also
+        injected at look-alike places (a nearly symmetric room: the pose turned 180 deg about its
+        centre fits the same scans), and while scans come late or fit badly for a moment (a loaded
+        machine) such a cluster can outweigh the tracked one for an update or two: the estimate
+        would jump metres and back.  So the cluster that continues the previous estimate (within
+        ``TRACK_XY`` / ``TRACK_YAW`` of it, moved by odometry) stays the estimate unless another is
+        ``switch_ratio`` times heavier; after a real kidnap the tracked cluster fits no scan and
+        dies out within a few updates, and the estimate moves.
+        """
         cl = clusters(self.particles, self.weights)
         _, cov = weighted_mean_cov(self.particles, self.weights)
-        best = cl[0].mean
-        return Pose2D(*best), cov, cl
+        best = cl[0]
+        if self.tracked is not None and self.cfg.switch_ratio > 1.0:
+            t = self.tracked
+            near = [c for c in cl if math.hypot(c.mean[0] - t.x, c.mean[1] - t.y) <= TRACK_XY
+                    and abs(math.remainder(c.mean[2] - t.yaw, 2.0 * math.pi)) <= TRACK_YAW]
+            if near and near[0] is not best and best.weight < self.cfg.switch_ratio * near[0].weight:
+                best = near[0]
+            elif not near or near[0] is not best:
+                self.switches += 1
+        self.tracked = Pose2D(*best.mean)
+        return Pose2D(*best.mean), cov, cl

@@ -82,6 +82,8 @@ class AmclConfig:
     recovery_scans: int = 20            # ours: recent scans (odometry-aligned) the candidates are scored on
     recovery_beams: int = 180           # ours: at most this many of those scans' beams
     recovery_refine: int = 4            # ours: jittered copies per chosen candidate, scored again (0: none)
+    estimate_switch_ratio: float = 3.0  # ours: another cluster must be this many times heavier to become the
+                                        # estimate (1: always the heaviest, as amcl)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
@@ -116,7 +118,8 @@ class AmclConfig:
         """The particle filter's settings (particle counts, KLD, recovery)."""
         return FilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
                             self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool,
-                            self.recovery_scans, self.recovery_beams, self.recovery_refine)
+                            self.recovery_scans, self.recovery_beams, self.recovery_refine,
+                            self.estimate_switch_ratio)
 
     def motion_noise(self) -> DiffMotionNoise:
         """The odometry motion model's noise (odom_alpha1..4)."""
@@ -292,7 +295,8 @@ class Amcl:
             return ERROR, "no usable map yet", {}
         values = {"particles": float(len(self.pf.particles)), "updates": float(self.updates),
                   "mean_beam_fit": self.fit, "w_slow": self.pf.w_slow, "w_fast": self.pf.w_fast,
-                  "injected_last_resample": float(self.pf.injected)}
+                  "injected_last_resample": float(self.pf.injected),
+                  "estimate_switches": float(self.pf.switches)}
         if self.estimate is not None:
             e = self.estimate
             values.update(x=e.pose.x, y=e.pose.y, yaw=e.pose.yaw, std_xy=e.spread,
