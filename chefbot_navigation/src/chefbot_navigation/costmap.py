@@ -209,11 +209,12 @@ class LayeredCostmap:
             self._master = inflate(self.base(), self.info.resolution, self.params)
         return Costmap(self.info, self._master)
 
-    def window(self, cx: float, cy: float, width: float, height: float) -> Costmap:
+    def window(self, cx: float, cy: float, width: float, height: float, static_only: bool = False) -> Costmap:
         """Rolling window (m) centred at (cx, cy), inflated locally (cells off the map are unknown).
 
         Only a window plus the inflation radius is inflated, so the cost per
-        controller cycle does not grow with the map.
+        controller cycle does not grow with the map.  ``static_only``: the map
+        alone, without what the sensors marked.
         """
         res = self.info.resolution
         w, h = int(round(width / res)), int(round(height / res))
@@ -228,7 +229,8 @@ class LayeredCostmap:
         sc0, sc1 = max(pc0, 0), min(pc0 + pw, self.info.width)
         if sr0 < sr1 and sc0 < sc1:
             static = self.static[sr0:sr1, sc0:sc1].copy()
-            static[self._all_obstacles()[sr0:sr1, sc0:sc1]] = LETHAL
+            if not static_only:
+                static[self._all_obstacles()[sr0:sr1, sc0:sc1]] = LETHAL
             pad[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0] = static
         cost = inflate(pad, res, self.params)[margin:margin + h, margin:margin + w]
         ox = self.info.origin_x + c0 * res

@@ -8,7 +8,8 @@ move_base's state machine:
 * PLANNING: plan on the global costmap.  Goals inside an obstacle, in
   unknown space, off the map or unreachable abort at once, after one
   'clear costmaps' retry (the blocking cells may be stale scan marks).
-  Other planner failures are retried until ``planner_patience``.
+  Other planner failures -- and a goal that only the sensors' marks block,
+  free on the map -- are retried until ``planner_patience``.
 * CONTROLLING: the local controller follows the plan; the plan is renewed
   at ``planner_frequency`` and at once when an inscribed/lethal cell appears
   on the remaining path within ``path_check_distance``.  A controller that
@@ -336,6 +337,16 @@ class Navigator:
         self._say(f"{outcome}: {text}")
         return StepResult(0.0, 0.0, "idle", outcome, text)
 
+    def _blocked_by_sensors(self, err: PlanningError) -> bool:
+        """The goal is in or too near an obstacle only because of what the sensors marked: on the
+        map alone it is free (such a goal is retried until planner_patience, then recovered, then
+        aborted; a goal the map itself blocks aborts at once)."""
+        if err.kind not in ("goal_in_obstacle", "goal_too_close"):
+            return False
+        res = self.costmap.info.resolution
+        static = self.costmap.window(self.goal.x, self.goal.y, 4 * res, 4 * res, static_only=True)
+        return int(static.cost_at(self.goal.x, self.goal.y)) < INSCRIBED
+
     def _try_plan(self, pose: Pose2D, t: float) -> tuple[Plan | None, PlanningError | None]:
         self.last_plan_time = t
         try:
@@ -455,14 +466,16 @@ class Navigator:
                 self.last_valid_plan = t
                 self.controller.set_path(plan.points, self.goal.yaw)
                 self.state = "controlling"
-            elif err.kind in GOAL_ERRORS:
-                if not self.cleared_for_goal and bool(self.costmap.obstacles.any()):
-                    # the blocking cells may be stale marks from the scan: forget them and retry once
-                    self.cleared_for_goal = True
-                    self.costmap.clear_obstacles()
-                    return self._step(t, pose)
+            elif err.kind in GOAL_ERRORS and not self.cleared_for_goal and bool(self.costmap.obstacles.any()):
+                # the blocking cells may be stale marks from the scan: forget them and retry once
+                self.cleared_for_goal = True
+                self.costmap.clear_obstacles()
+                return self._step(t, pose)
+            elif err.kind in GOAL_ERRORS and not self._blocked_by_sensors(err):
                 return self._finish("aborted", f"Failed to plan: {err.reason}")
             elif self.plan is None or self.need_plan:
+                # (also a goal that only the sensors' marks block -- a guest at the table, a chair pulled
+                # out, a mark made with a late pose: not a bad goal; the current plan is kept meanwhile)
                 if t - self.last_valid_plan > self.p.planner_patience:
                     return self._start_recovery(t, pose, f"no valid plan for {self.p.planner_patience:g} s "
                                                          f"({err.reason})")

@@ -69,6 +69,32 @@ def test_goal_in_obstacle_aborts_at_once() -> None:
     assert res.outcome == "aborted" and "inside an obstacle" in res.text and t < 1.0
 
 
+def test_goal_blocked_only_by_sensor_marks_is_retried_not_refused() -> None:
+    """A guest standing at the table (marked by the sensors, free on the map): the goal is not a bad
+    goal -- no abort at once; when the guest leaves in time the robot delivers, when they stay the goal
+    ends after patience and recoveries with the reason, not at the first plan."""
+    guest = np.meshgrid(np.linspace(-2.1, -1.9, 5), np.linspace(3.4, 3.6, 5))
+
+    def stays(until: float):
+        def hook(t: float, pose: Pose2D) -> None:
+            if t < until:
+                layers.mark_points(guest[0].ravel(), guest[1].ravel())   # re-marked by every scan
+            else:
+                layers.clear_obstacles()
+        return hook
+
+    nav, layers = make_nav(planner_patience=2.0, controller_patience=2.0)
+    nav.set_goal(Goal(-2.0, 3.5, 0.0), 0.0)
+    res, pose, t = run(nav, Pose2D(-2.0, -0.5, math.pi / 2), hook=stays(3.0))
+    assert res.outcome == "succeeded", res.text
+    assert math.hypot(pose.x + 2.0, pose.y - 3.5) <= 0.05
+    nav, layers = make_nav(planner_patience=2.0, controller_patience=2.0)
+    nav.set_goal(Goal(-2.0, 3.5, 0.0), 0.0)
+    res, _, t = run(nav, Pose2D(-2.0, -0.5, math.pi / 2), t_max=200.0, hook=stays(1e9))
+    assert res.outcome == "aborted" and t > 2.0, (res.text, t)
+    assert "obstacle" in res.text, res.text
+
+
 def test_goal_in_unknown_and_off_map_abort() -> None:
     for goal, words in [(Goal(3.0, 3.0, 0.0), "unknown"), (Goal(9.0, 0.0, 0.0), "off the map")]:
         nav, _ = make_nav()
