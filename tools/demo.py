@@ -24,7 +24,9 @@ that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``ho
 default, or plugin: the sim applies cmd_vel and publishes wheel odometry itself; `make demo
 DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the IMU -- diff_tf's
 use_imu in the firmware drive, the sim's odom_imu_heading in the plugin drive; 0: wheel-only
-heading).  Every name starting with ``table`` in the tables file is a delivery target.
+heading); CHEFBOT_DEMO_SLAM=1 (`make demo SLAM=1`): first map the world with our SLAM, save the map,
+localize on it and deliver there (tools/slam_demo.py).  Every name starting with ``table`` in the tables
+file is a delivery target.
 A tables file of a map whose frame is not the world's (a SLAM map, e.g. hotel_tables_slam.yaml
 by ``align_tables``) carries ``map_in_world``: the robot is spawned at that pose composed with
 ``home`` (amcl starts at ``home`` in the map frame) and ground truth is compared with each goal
@@ -91,6 +93,9 @@ def tf_tree(timeout: float) -> dict[str, str]:
 
 
 def main() -> int:
+    if os.environ.get("CHEFBOT_DEMO_SLAM", "") not in ("", "0", "false"):
+        from slam_demo import run  # `make demo SLAM=1`: map -> save -> localize -> deliver
+        return run()
     rtf = os.environ.get("CHEFBOT_DEMO_RTF", "1.0")
     site = {k: os.environ.get(f"CHEFBOT_DEMO_{k.upper()}", "") for k in ("world", "map", "tables_file")}
     for key, value in site.items():

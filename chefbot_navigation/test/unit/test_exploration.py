@@ -8,12 +8,12 @@ from chefbot_common.geometry import Pose2D
 from chefbot_common.grid import FREE, OCCUPIED, UNKNOWN, GridInfo, OccupancyMap
 from chefbot_navigation.exploration import (
     Blacklist,
-    camera_view_ok,
     ExploreConfig,
     ExploreNodeParams,
     FrontierScan,
     GoalWatch,
     ProgressWatch,
+    camera_view_ok,
     closed_share,
     final_line,
     find_frontiers,
