@@ -1,0 +1,69 @@
+"""tools/slam_workflow.py's map judging (no master): the saved map carried into the world through the
+registration, and its quality against the world raster (the `make demo SLAM=1` / slam_workflow.test oracle)."""
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
+from chefbot_common.map_io import load_map
+
+ROOT = Path(__file__).resolve().parents[2]
+ROOM_MAP = ROOT / "tests" / "test" / "worlds" / "slam_room_map.yaml"
+
+
+def _load(name: str):
+    sys.path.insert(0, str(ROOT / "tools"))
+    spec = importlib.util.spec_from_file_location(f"chefbot_tools_{name}", ROOT / "tools" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+wf = _load("slam_workflow")
+
+
+def _seen_from(truth: OccupancyMap, frame: Pose2D) -> OccupancyMap:
+    """The raster as a SLAM map whose frame sits at ``frame`` in the world (nearest-cell resampling)."""
+    info = GridInfo(truth.info.resolution, truth.info.width + 40, truth.info.height + 40,
+                    truth.info.origin_x - 1.0, truth.info.origin_y - 1.0)
+    rows, cols = np.mgrid[0:info.height, 0:info.width]
+    mx, my = info.cell_to_world(rows, cols)
+    c, s = math.cos(frame.yaw), math.sin(frame.yaw)
+    r, k = truth.info.world_to_cell(frame.x + c * mx - s * my, frame.y + s * mx + c * my)
+    ok = truth.info.inside(r, k)
+    data = np.full((info.height, info.width), -1, dtype=np.int8)
+    data[ok] = truth.data[r[ok], k[ok]]
+    return OccupancyMap(info, data)
+
+
+def test_a_rotated_but_good_map_is_judged_good_and_its_frame_found():
+    truth = load_map(ROOM_MAP)
+    frame = Pose2D(0.12, -0.08, math.radians(2.5))
+    saved = _seen_from(truth, frame)
+    q, align = wf.judge_map(saved, truth, (0.0, 0.0))
+    assert abs(align.x - frame.x) < 0.03 and abs(align.y - frame.y) < 0.03 and abs(align.yaw - frame.yaw) < 0.005
+    assert q.matched > 0.97 and q.false_occupied < 0.02 and q.coverage > 0.95
+    back = wf.in_world(saved, truth, align.pose)
+    assert back.info == truth.info and np.mean((back.data > 50) == (truth.data > 50)) > 0.99
+
+
+def test_a_doubled_wall_and_an_unseen_corner_show_in_the_figures():
+    truth = load_map(ROOM_MAP)
+    bad = OccupancyMap(truth.info, truth.data.copy())
+    occupied = np.argwhere(truth.data > 50)
+    ghost = occupied + [0, 8]                                # every wall drawn a second time 0.4 m east
+    ghost = ghost[(ghost[:, 1] < truth.info.width) & (truth.data[ghost[:, 0], ghost[:, 1]] == 0)]
+    bad.data[ghost[::2, 0], ghost[::2, 1]] = 100
+    free = truth.data == 0
+    corner = np.zeros_like(free)
+    corner[: truth.info.height // 3, : truth.info.width // 3] = True
+    bad.data[corner & free] = -1
+    q, _ = wf.judge_map(bad, truth, (0.0, 0.0))
+    assert q.false_occupied > 0.1 and q.coverage < 0.95
