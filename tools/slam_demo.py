@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from demo import ROOT, STARTUP_TIMEOUT_S, say
+from demo import ROOT, STARTUP_TIMEOUT_S, DemoInputError, say, site_files, table_names
 from procs import ProcessGroup, free_port
 from slam_workflow import (
     ExploreWatch,
@@ -74,11 +74,11 @@ def _wait_sim(launch: ProcessGroup, log: Path) -> None:
 
 def run() -> int:
     """The SLAM demo (see the module doc); the process exit code."""
-    env_in = {k: os.environ.get(f"CHEFBOT_DEMO_{k.upper()}", "") for k in ("world", "map", "tables_file")}
-    for key, value in env_in.items():
-        if value and not Path(value).is_file():
-            say(f"ERROR: CHEFBOT_DEMO_{key.upper()} names {value}, which is not a file")
-            return 2
+    try:
+        env_in = site_files()
+    except DemoInputError as exc:
+        say(f"ERROR: {exc}")
+        return 2
     world = Path(env_in["world"]).resolve() if env_in["world"] else WORLD
     truth_file = Path(env_in["map"]).resolve() if env_in["map"] else TRUTH_MAP
     tables_file = Path(env_in["tables_file"]).resolve() if env_in["tables_file"] else TABLES_FILE
@@ -98,14 +98,11 @@ def run() -> int:
         say(f"ERROR: {exc}")
         return 2
     world_pose = {k: tables_in_world.compose(p) for k, p in tables.items()}   # the tables in the world frame
-    names = [n for n in tables if n.startswith("table")]
-    subset = os.environ.get("CHEFBOT_DEMO_TABLES")
-    if subset:
-        names = [n.strip() for n in subset.split(",") if n.strip()]
-        unknown = [n for n in names if n not in tables]
-        if unknown:
-            say(f"ERROR: CHEFBOT_DEMO_TABLES names unknown tables {unknown}; known: {sorted(tables)}")
-            return 2
+    try:
+        names = table_names(tables)
+    except DemoInputError as exc:
+        say(f"ERROR: {exc}")
+        return 2
     home = world_pose.get("home")
     if home is None:
         say(f"ERROR: {tables_file} has no 'home' pose (the robot's start)")

@@ -30,17 +30,11 @@ wf = _load("slam_workflow")
 
 
 def _seen_from(truth: OccupancyMap, frame: Pose2D) -> OccupancyMap:
-    """The raster as a SLAM map whose frame sits at ``frame`` in the world (nearest-cell resampling)."""
+    """The raster as a SLAM map whose frame sits at ``frame`` in the world, on a grid 1 m larger each way."""
     info = GridInfo(truth.info.resolution, truth.info.width + 40, truth.info.height + 40,
                     truth.info.origin_x - 1.0, truth.info.origin_y - 1.0)
-    rows, cols = np.mgrid[0:info.height, 0:info.width]
-    mx, my = info.cell_to_world(rows, cols)
-    c, s = math.cos(frame.yaw), math.sin(frame.yaw)
-    r, k = truth.info.world_to_cell(frame.x + c * mx - s * my, frame.y + s * mx + c * my)
-    ok = truth.info.inside(r, k)
-    data = np.full((info.height, info.width), -1, dtype=np.int8)
-    data[ok] = truth.data[r[ok], k[ok]]
-    return OccupancyMap(info, data)
+    return wf.in_world(truth, OccupancyMap(info, np.full((info.height, info.width), -1, dtype=np.int8)),
+                       frame.inverse())
 
 
 def test_a_rotated_but_good_map_is_judged_good_and_its_frame_found():
