@@ -70,7 +70,7 @@ class ExploreWatch:
         """Wait for ``explore/done``; echo each new log line; True = the map is complete.
 
         Raises WorkflowError when the wall-clock timeout runs out or ``alive()`` turns false."""
-        deadline, shown = time.monotonic() + timeout_wall, 0
+        deadline, shown, next_check = time.monotonic() + timeout_wall, 0, 0.0
         while self.done is None:
             with self._lock:
                 new, shown = self.lines[shown:], len(self.lines)
@@ -78,6 +78,11 @@ class ExploreWatch:
                 echo(line)
             if not alive():
                 raise WorkflowError("the simulation / SLAM launch stopped during exploration")
+            if shown and time.monotonic() > next_check:       # explore is up: it and slam must stay up
+                next_check = time.monotonic() + 5.0
+                gone = [n for n in ("/slam", self.node) if n not in rosnode.get_node_names()]
+                if gone and self.done is None:
+                    raise WorkflowError(f"{', '.join(gone)} exited during exploration (explore/done never came)")
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise WorkflowError(f"exploration did not end within {timeout_wall:.0f} s wall time")
             time.sleep(0.2)
