@@ -41,6 +41,7 @@ from procs import ProcessGroup, free_port
 from slam_workflow import (
     ExploreWatch,
     WorkflowError,
+    clear_costmaps,
     judge_map,
     localization_commands,
     save_map,
@@ -163,6 +164,7 @@ def run() -> int:
                     ProcessGroup(cmds[1], env=env, log=LOG_DIR / "amcl.log") as amcl:
                 both = lambda: alive() and server.poll() is None and amcl.poll() is None   # noqa: E731
                 wait_localized(both)
+                clear_costmaps()
                 say(f"stage 3/4 localize: slam and explore stopped; map_server serves the saved map, amcl started "
                     f"at SLAM's last pose ({start.x:.2f}, {start.y:.2f}) m, {start.yaw * 57.2958:.1f} deg")
                 stage = "deliver"

@@ -11,6 +11,8 @@ Shared by ``make demo SLAM=1`` (tools/slam_demo.py) and the slam_workflow rostes
 4. :func:`stop_mapping` kills ``slam`` and ``explore`` and waits until they are gone;
 5. :func:`localization_commands`: our ``map_server`` on the saved file and our ``amcl``
    started at that pose (``move_base`` keeps running and takes the served map);
+   :func:`wait_localized` waits for amcl, :func:`clear_costmaps` drops the scan obstacles
+   marked while mapping;
 6. :func:`judge_map` (test oracle: reads the world raster): map quality and the saved
    map's pose in the world (``map_align.align_maps``, align_tables' registration).
 
@@ -184,6 +186,18 @@ def in_world(saved: OccupancyMap, truth: OccupancyMap, map_in_world: Pose2D) -> 
     data = np.full((ti.height, ti.width), -1, dtype=np.int8)
     data[ok] = saved.data[r[ok], k[ok]]
     return OccupancyMap(ti, data)
+
+
+def clear_costmaps(timeout: float = 10.0) -> None:
+    """``move_base/clear_costmaps``: forget the obstacles the scans marked while mapping (any phantom among
+    them), so the saved map alone is what the deliveries start from."""
+    from std_srvs.srv import Empty
+
+    try:
+        rospy.wait_for_service("move_base/clear_costmaps", timeout=timeout)
+        rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
+    except (rospy.ROSException, rospy.ServiceException) as exc:
+        raise WorkflowError(f"move_base/clear_costmaps failed: {exc}") from exc
 
 
 def judge_map(saved: OccupancyMap, truth: OccupancyMap, start_xy: tuple[float, float]) -> tuple:

@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 from procs import ProcessGroup
 from slam_workflow import (
     ExploreWatch,
+    clear_costmaps,
     judge_map,
     localization_commands,
     save_map,
@@ -78,6 +79,7 @@ class SlamWorkflowTest(unittest.TestCase):
         with ProcessGroup(cmds[0]) as server, ProcessGroup(cmds[1]) as amcl:
             alive = lambda: server.poll() is None and amcl.poll() is None   # noqa: E731
             wait_localized(alive)
+            clear_costmaps()
             self.assertTrue(maps, "no map from map_server")
             served = msg_to_occupancy(maps[-1])
             self.assertEqual(served.data.shape, saved.data.shape)

@@ -13,7 +13,8 @@ Termination (what makes a live run end instead of chasing shadows):
 
 * unknown *pockets* -- unknown regions enclosed by known cells (not touching the
   grid border) smaller than ``min_pocket_area`` m^2 (a table top's inside, the
-  shadow behind a chair back) -- make no frontier;
+  shadow behind a chair back) with at least ``pocket_min_occupied`` of their border
+  occupied -- make no frontier (open floor nobody looked at does);
 * a :class:`Blacklist` of frontier *cells*: a frontier whose goal failed, timed
   out or made no progress, or that was visited (goal reached, look-around done)
   and is still there, is given up; later frontiers with at least
@@ -50,7 +51,9 @@ class ExploreConfig:
     gain_weight: float = 1.0         # m of travel a metre of frontier is worth
     blacklist_radius: float = 0.5    # m, given-up frontier cells cover later frontier cells this close
     blacklist_share: float = 0.5     # a frontier with this share of its cells covered is given up
-    min_pocket_area: float = 2.0     # m^2, enclosed unknown regions smaller than this are not explored
+    min_pocket_area: float = 2.0     # m^2, enclosed unknown regions smaller than this are not explored ...
+    pocket_min_occupied: float = 0.1  # ... when at least this share of their border is occupied (a table top, a
+                                      # shadow behind a chair); a pocket of open floor (free border) is explored
     view_distance: float = 1.0       # m, preferred goal distance from the frontier, with line of sight (0: nearest
                                      # to the frontier's centroid); the depth camera sees nothing nearer than ~0.45 m
     camera_fov: float = 1.01         # rad, the depth camera's horizontal field of view (58 deg)
@@ -64,6 +67,8 @@ class ExploreConfig:
             raise ValueError(f"blacklist_share must be in (0, 1], got {self.blacklist_share}")
         if self.min_pocket_area < 0:
             raise ValueError(f"min_pocket_area must be >= 0 m^2, got {self.min_pocket_area}")
+        if not 0 <= self.pocket_min_occupied <= 1:
+            raise ValueError(f"pocket_min_occupied must be in [0, 1], got {self.pocket_min_occupied}")
         for name in ("view_distance", "view_clear", "spin_clear"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0 m, got {getattr(self, name)}")
@@ -198,9 +203,14 @@ class GoalWatch:
         return self.area.update(t, known) and near
 
 
-def open_unknown(occ: OccupancyMap, min_pocket_area: float) -> np.ndarray:
+POCKET_MIN_OCCUPIED = 0.1   # ExploreConfig.pocket_min_occupied's default, for the progress lines
+
+
+def open_unknown(occ: OccupancyMap, min_pocket_area: float, min_occupied: float = POCKET_MIN_OCCUPIED) -> np.ndarray:
     """Unknown cells worth exploring: all unknown except enclosed pockets (not touching the grid border)
-    smaller than ``min_pocket_area`` m^2."""
+    smaller than ``min_pocket_area`` m^2 with at least ``min_occupied`` of their border cells occupied.
+    A pocket whose border is (nearly) all free is floor nobody looked at, not a table top or a shadow:
+    it stays (one of 1.4 m^2 held the table_5 delivery pose after a hotel exploration)."""
     unk = occ.data == UNKNOWN
     if min_pocket_area <= 0 or not unk.any():
         return unk
@@ -208,15 +218,23 @@ def open_unknown(occ: OccupancyMap, min_pocket_area: float) -> np.ndarray:
     sizes = np.bincount(labels.ravel(), minlength=n + 1) * occ.info.resolution ** 2
     border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
     keep = sizes >= min_pocket_area
+    if min_occupied > 0:
+        # border ring of each pocket: known cells with a pocket cell among their 4-neighbours
+        near = ndimage.grey_dilation(labels, footprint=ndimage.generate_binary_structure(2, 1))
+        ring = (near > 0) & ~unk
+        cells = np.bincount(near[ring], minlength=n + 1)
+        occupied = np.bincount(near[ring], weights=(occ.data[ring] > 50).astype(float), minlength=n + 1)
+        keep |= (cells > 0) & (occupied < min_occupied * cells)
     keep[border] = True
     keep[0] = False
     return keep[labels]
 
 
-def frontier_mask(occ: OccupancyMap, min_pocket_area: float = 0.0) -> np.ndarray:
+def frontier_mask(occ: OccupancyMap, min_pocket_area: float = 0.0,
+                  min_occupied: float = POCKET_MIN_OCCUPIED) -> np.ndarray:
     """Boolean mask of free cells with an unknown 4-neighbour (outside pockets, see :func:`open_unknown`)."""
     free = occ.data == FREE
-    unk = open_unknown(occ, min_pocket_area)
+    unk = open_unknown(occ, min_pocket_area, min_occupied)
     near = np.zeros_like(unk)
     near[1:, :] |= unk[:-1, :]
     near[:-1, :] |= unk[1:, :]
@@ -304,7 +322,8 @@ def scan_frontiers(occ: OccupancyMap, robot: Pose2D, cfg: ExploreConfig,
     cost = np.where(passable, 1.0, np.inf)
     travel, _ = MCP_Geometric(cost).find_costs([(int(r0), int(c0))])
     travel = travel * res
-    labels, n = ndimage.label(frontier_mask(occ, cfg.min_pocket_area), structure=np.ones((3, 3)))
+    labels, n = ndimage.label(frontier_mask(occ, cfg.min_pocket_area, cfg.pocket_min_occupied),
+                              structure=np.ones((3, 3)))
     scan = FrontierScan([])
     if n == 0:
         return scan

@@ -92,7 +92,8 @@ def test_robot_outside_the_map_is_an_error():
 def _room_with_pockets() -> OccupancyMap:
     """A fully known room with a 0.5 x 0.5 m unknown shadow behind a 'chair' and a 2 x 2 m unknown area."""
     occ = _room(120)
-    occ.data[20:30, 20:30] = UNKNOWN            # 0.25 m^2 enclosed by free cells
+    occ.data[20:30, 20:30] = UNKNOWN            # 0.25 m^2 enclosed by free cells ...
+    occ.data[19, 19:31] = OCCUPIED              # ... and the chair casting it (a quarter of its border)
     occ.data[40:80, 80:120] = UNKNOWN           # 4 m^2 touching the grid border (the unexplored part)
     return occ
 
@@ -108,6 +109,19 @@ def test_small_enclosed_unknown_pockets_make_no_frontier():
     occ.data[79, 80:120] = OCCUPIED
     occ.data[40:80, 119] = OCCUPIED
     assert not open_unknown(occ, 5.0)[50, 100] and open_unknown(occ, 3.0)[50, 100]
+
+
+def test_a_pocket_of_open_floor_stays_a_frontier():
+    """An enclosed unknown patch bordered by free cells only is floor nobody looked at (hotel run: 1.4 m^2 at the
+    table_5 delivery pose), not a table top: it stays a frontier; with a table's faces around it, it does not."""
+    occ = _room(120)
+    occ.data[30:50, 40:60] = UNKNOWN                          # 1 m^2 in the open
+    assert open_unknown(occ, 2.0)[40, 50] and len(find_frontiers(occ, Pose2D(1.0, 1.0, 0.0), ExploreConfig())) == 1
+    assert not open_unknown(occ, 2.0, min_occupied=0.0)[40, 50]
+    occ.data[29, 40:60] = occ.data[50, 40:60] = occ.data[30:50, 39] = OCCUPIED    # three faces seen
+    assert not open_unknown(occ, 2.0)[40, 50] and not find_frontiers(occ, Pose2D(1.0, 1.0, 0.0), ExploreConfig())
+    with pytest.raises(ValueError, match="pocket_min_occupied"):
+        ExploreConfig(pocket_min_occupied=2.0)
 
 
 def test_frontier_that_never_clears_is_given_up_after_its_visit():
