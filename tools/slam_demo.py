@@ -19,7 +19,7 @@ A table counts as delivered when move_base reports SUCCEEDED and ground truth is
 0.10 m / 0.10 rad of it (the manual hotel workflow test's bound; the raster-map demo's is
 0.05 m / 0.05 rad).  Exit 0 only when every table was delivered; every failing stage ends
 with a message naming it and exit 1; nothing is left running.  Results: build/demo_slam/
-(slam_map.yaml/.pgm, slam_demo.json, roslaunch.log, trajectory.json and plots).
+(slam_map.yaml/.pgm, slam_demo.json, delivery.json, roslaunch.log, trajectory.json and plots).
 
 Environment (as ``make demo``): CHEFBOT_DEMO_WORLD (world file), CHEFBOT_DEMO_MAP (here: the
 world's raster, used for judging only), CHEFBOT_DEMO_TABLES_FILE (tables; the robot starts at
@@ -180,6 +180,9 @@ def run() -> int:
     home_leg = next((leg for leg in legs if leg.name == "home"), None)
     report.update(deliver_sim_s=sim_s, legs=[leg.as_dict() for leg in legs], delivered=delivered, tables=len(names))
     (LOG_DIR / "slam_demo.json").write_text(json.dumps(report, indent=2) + "\n")
+    (LOG_DIR / "delivery.json").write_text(json.dumps(      # as make demo's, for tools/plots.py
+        {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s,
+         "legs": [leg.as_dict() for leg in legs]}, indent=2) + "\n")
     for line in save_route_report(trajectory, LOG_DIR):
         say(line)
     say(f"back home: {'yes' if home_leg and home_leg.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
