@@ -2,7 +2,6 @@
 registration, and its quality against the world raster (the `make demo SLAM=1` / slam_workflow.test oracle)."""
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
 from pathlib import Path
@@ -17,16 +16,8 @@ ROOT = Path(__file__).resolve().parents[2]
 ROOM_MAP = ROOT / "tests" / "test" / "worlds" / "slam_room_map.yaml"
 
 
-def _load(name: str):
-    sys.path.insert(0, str(ROOT / "tools"))
-    spec = importlib.util.spec_from_file_location(f"chefbot_tools_{name}", ROOT / "tools" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-wf = _load("slam_workflow")
+sys.path.insert(0, str(ROOT / "tools"))
+import slam_workflow as wf  # noqa: E402  (tools/ is no package)
 
 
 def _seen_from(truth: OccupancyMap, frame: Pose2D) -> OccupancyMap:
