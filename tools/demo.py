@@ -24,7 +24,9 @@ that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``ho
 default, or plugin: the sim applies cmd_vel and publishes wheel odometry itself; `make demo
 DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the IMU -- diff_tf's
 use_imu in the firmware drive, the sim's odom_imu_heading in the plugin drive; 0: wheel-only
-heading).  Every name starting with ``table`` in the tables file is a delivery target.
+heading); CHEFBOT_DEMO_SLAM=1 (`make demo SLAM=1`): first map the world with our SLAM, save the map,
+localize on it and deliver there (tools/slam_demo.py).  Every name starting with ``table`` in the tables
+file is a delivery target.
 A tables file of a map whose frame is not the world's (a SLAM map, e.g. hotel_tables_slam.yaml
 by ``align_tables``) carries ``map_in_world``: the robot is spawned at that pose composed with
 ``home`` (amcl starts at ``home`` in the map frame) and ground truth is compared with each goal
@@ -90,13 +92,41 @@ def tf_tree(timeout: float) -> dict[str, str]:
     return parents
 
 
-def main() -> int:
-    rtf = os.environ.get("CHEFBOT_DEMO_RTF", "1.0")
+class DemoInputError(ValueError):
+    """A CHEFBOT_DEMO_* variable names something that does not exist."""
+
+
+def site_files() -> dict[str, str]:
+    """CHEFBOT_DEMO_WORLD / _MAP / _TABLES_FILE ("" when unset); DemoInputError naming one that is no file."""
     site = {k: os.environ.get(f"CHEFBOT_DEMO_{k.upper()}", "") for k in ("world", "map", "tables_file")}
     for key, value in site.items():
         if value and not Path(value).is_file():
-            say(f"ERROR: CHEFBOT_DEMO_{key.upper()} names {value}, which is not a file")
-            return 2
+            raise DemoInputError(f"CHEFBOT_DEMO_{key.upper()} names {value}, which is not a file")
+    return site
+
+
+def table_names(tables: dict) -> list[str]:
+    """The tables to deliver to: every ``table*`` of the file, or CHEFBOT_DEMO_TABLES (checked against it)."""
+    names = [n for n in tables if n.startswith("table")]
+    subset = os.environ.get("CHEFBOT_DEMO_TABLES")
+    if subset:
+        names = [n.strip() for n in subset.split(",") if n.strip()]
+        unknown = [n for n in names if n not in tables]
+        if unknown:
+            raise DemoInputError(f"CHEFBOT_DEMO_TABLES names unknown tables {unknown}; known: {sorted(tables)}")
+    return names
+
+
+def main() -> int:
+    if os.environ.get("CHEFBOT_DEMO_SLAM", "") not in ("", "0", "false"):
+        from slam_demo import run  # `make demo SLAM=1`: map -> save -> localize -> deliver
+        return run()
+    rtf = os.environ.get("CHEFBOT_DEMO_RTF", "1.0")
+    try:
+        site = site_files()
+    except DemoInputError as exc:
+        say(f"ERROR: {exc}")
+        return 2
     tables_file = Path(site["tables_file"]).resolve() if site["tables_file"] else TABLES_FILE
     port = free_port()
     uri = f"http://127.0.0.1:{port}"
@@ -141,14 +171,11 @@ def main() -> int:
         sys.path.insert(0, str(ROOT / "tools"))
         from delivery import DeliveryClient, launch_map_file, save_route_report
 
-        names = [n for n in tables if n.startswith("table")]
-        subset = os.environ.get("CHEFBOT_DEMO_TABLES")
-        if subset:
-            names = [n.strip() for n in subset.split(",") if n.strip()]
-            unknown = [n for n in names if n not in tables]
-            if unknown:
-                say(f"ERROR: CHEFBOT_DEMO_TABLES names unknown tables {unknown}; known: {sorted(tables)}")
-                return 2
+        try:
+            names = table_names(tables)
+        except DemoInputError as exc:
+            say(f"ERROR: {exc}")
+            return 2
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while not rosgraph.Master("/chefbot_demo").is_online():
             if time.monotonic() > deadline:

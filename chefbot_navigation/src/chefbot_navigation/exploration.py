@@ -13,7 +13,8 @@ Termination (what makes a live run end instead of chasing shadows):
 
 * unknown *pockets* -- unknown regions enclosed by known cells (not touching the
   grid border) smaller than ``min_pocket_area`` m^2 (a table top's inside, the
-  shadow behind a chair back) -- make no frontier;
+  shadow behind a chair back) with at least ``pocket_min_occupied`` of their border
+  occupied -- make no frontier (open floor nobody looked at does);
 * a :class:`Blacklist` of frontier *cells*: a frontier whose goal failed, timed
   out or made no progress, or that was visited (goal reached, look-around done)
   and is still there, is given up; later frontiers with at least
@@ -50,17 +51,31 @@ class ExploreConfig:
     gain_weight: float = 1.0         # m of travel a metre of frontier is worth
     blacklist_radius: float = 0.5    # m, given-up frontier cells cover later frontier cells this close
     blacklist_share: float = 0.5     # a frontier with this share of its cells covered is given up
-    min_pocket_area: float = 2.0     # m^2, enclosed unknown regions smaller than this are not explored
+    min_pocket_area: float = 2.0     # m^2, enclosed unknown regions smaller than this are not explored ...
+    pocket_min_occupied: float = 0.1  # ... when at least this share of their border is occupied (a table top, a
+                                      # shadow behind a chair); a pocket of open floor (free border) is explored
     view_distance: float = 1.0       # m, preferred goal distance from the frontier, with line of sight (0: nearest
                                      # to the frontier's centroid); the depth camera sees nothing nearer than ~0.45 m
+    camera_fov: float = 1.01         # rad, the depth camera's horizontal field of view (58 deg)
+    view_clear: float = 0.6          # m, "camera not blind": known free space this far ahead of the goal heading,
+                                     # all across camera_fov (range_min 0.45 m + a margin; 0: rule off)
+    spin_clear: float = 0.45         # m, and known free this far out (the camera's range_min) in ...
+    spin_open_share: float = 0.5     # ... at least this share of all directions, for the look-around spin (0: off)
 
     def __post_init__(self) -> None:
         if not 0 < self.blacklist_share <= 1:
             raise ValueError(f"blacklist_share must be in (0, 1], got {self.blacklist_share}")
         if self.min_pocket_area < 0:
             raise ValueError(f"min_pocket_area must be >= 0 m^2, got {self.min_pocket_area}")
-        if not self.view_distance >= 0:
-            raise ValueError(f"view_distance must be >= 0 m, got {self.view_distance}")
+        if not 0 <= self.pocket_min_occupied <= 1:
+            raise ValueError(f"pocket_min_occupied must be in [0, 1], got {self.pocket_min_occupied}")
+        for name in ("view_distance", "view_clear", "spin_clear"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0 m, got {getattr(self, name)}")
+        if not 0 < self.camera_fov <= 2 * math.pi:
+            raise ValueError(f"camera_fov must be in (0, 2 pi] rad, got {self.camera_fov}")
+        if not 0 <= self.spin_open_share <= 1:
+            raise ValueError(f"spin_open_share must be in [0, 1], got {self.spin_open_share}")
         for name in ("clearance", "robot_radius", "approach", "min_frontier", "blacklist_radius"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0 m, got {getattr(self, name)}")
@@ -119,11 +134,12 @@ class FrontierScan:
     blacklisted: int = 0       # mostly given-up cells
     unreachable: int = 0       # no safe reachable goal within `approach`
     small: int = 0             # shorter than min_frontier
+    blind: int = 0             # reachable goals, but none where the camera would see (camera_view_ok)
 
     @property
     def left(self) -> int:
         """Frontier groups still in the map (worth a visit or not)."""
-        return len(self.frontiers) + self.blacklisted + self.unreachable + self.small
+        return len(self.frontiers) + self.blacklisted + self.unreachable + self.small + self.blind
 
 
 class Blacklist:
@@ -187,9 +203,14 @@ class GoalWatch:
         return self.area.update(t, known) and near
 
 
-def open_unknown(occ: OccupancyMap, min_pocket_area: float) -> np.ndarray:
+POCKET_MIN_OCCUPIED = 0.1   # ExploreConfig.pocket_min_occupied's default, for the progress lines
+
+
+def open_unknown(occ: OccupancyMap, min_pocket_area: float, min_occupied: float = POCKET_MIN_OCCUPIED) -> np.ndarray:
     """Unknown cells worth exploring: all unknown except enclosed pockets (not touching the grid border)
-    smaller than ``min_pocket_area`` m^2."""
+    smaller than ``min_pocket_area`` m^2 with at least ``min_occupied`` of their border cells occupied.
+    A pocket whose border is (nearly) all free is floor nobody looked at, not a table top or a shadow:
+    it stays (one of 1.4 m^2 held the table_5 delivery pose after a hotel exploration)."""
     unk = occ.data == UNKNOWN
     if min_pocket_area <= 0 or not unk.any():
         return unk
@@ -197,15 +218,23 @@ def open_unknown(occ: OccupancyMap, min_pocket_area: float) -> np.ndarray:
     sizes = np.bincount(labels.ravel(), minlength=n + 1) * occ.info.resolution ** 2
     border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
     keep = sizes >= min_pocket_area
+    if min_occupied > 0:
+        # border ring of each pocket: known cells with a pocket cell among their 4-neighbours
+        near = ndimage.grey_dilation(labels, footprint=ndimage.generate_binary_structure(2, 1))
+        ring = (near > 0) & ~unk
+        cells = np.bincount(near[ring], minlength=n + 1)
+        occupied = np.bincount(near[ring], weights=(occ.data[ring] > 50).astype(float), minlength=n + 1)
+        keep |= (cells > 0) & (occupied < min_occupied * cells)
     keep[border] = True
     keep[0] = False
     return keep[labels]
 
 
-def frontier_mask(occ: OccupancyMap, min_pocket_area: float = 0.0) -> np.ndarray:
+def frontier_mask(occ: OccupancyMap, min_pocket_area: float = 0.0,
+                  min_occupied: float = POCKET_MIN_OCCUPIED) -> np.ndarray:
     """Boolean mask of free cells with an unknown 4-neighbour (outside pockets, see :func:`open_unknown`)."""
     free = occ.data == FREE
-    unk = open_unknown(occ, min_pocket_area)
+    unk = open_unknown(occ, min_pocket_area, min_occupied)
     near = np.zeros_like(unk)
     near[1:, :] |= unk[:-1, :]
     near[:-1, :] |= unk[1:, :]
@@ -225,6 +254,49 @@ def line_of_sight(occ: OccupancyMap, x: np.ndarray, y: np.ndarray, tx: float, ty
     blocked = np.zeros(px.shape, dtype=bool)
     blocked[inside] = occ.data[r[inside], c[inside]] > 50
     return ~blocked.any(axis=1)
+
+
+def rays_free(occ: OccupancyMap, x: np.ndarray, y: np.ndarray, angles: np.ndarray, reach: float) -> np.ndarray:
+    """(N, K) bool: is every cell from (x[i], y[i]) (m) out to ``reach`` m along heading ``angles[i, k]`` (rad)
+    known FREE (not occupied, not unknown, inside the map)?  Sampled every half cell."""
+    x, y = np.asarray(x, dtype=float)[:, None, None], np.asarray(y, dtype=float)[:, None, None]
+    a = np.asarray(angles, dtype=float)[:, :, None]
+    steps = np.linspace(0.0, reach, max(2, int(np.ceil(reach / (0.5 * occ.info.resolution))) + 1))[None, None, :]
+    r, c = occ.info.world_to_cell(x + np.cos(a) * steps, y + np.sin(a) * steps)
+    inside = occ.info.inside(r, c)
+    free = np.zeros(inside.shape, dtype=bool)
+    free[inside] = occ.data[r[inside], c[inside]] == FREE
+    return free.all(axis=2)
+
+
+def camera_view_ok(occ: OccupancyMap, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, cfg: ExploreConfig) -> np.ndarray:
+    """The "camera not blind" rule (bool per goal (x, y, yaw), m/rad): the depth camera sees nothing nearer than its
+    range_min (0.45 m), so a goal is only worth parking at when (1) the whole field of view (``camera_fov``)
+    is known free ``view_clear`` m ahead of the goal heading, and (2) for the look-around spin, at least
+    ``spin_open_share`` of all directions are known free ``spin_clear`` m out.  An unknown cell counts as
+    blocked: it may hide the pillar or wall that would leave the camera (and SLAM's scan matcher) blind,
+    as in the 0.8 m gap between a pillar and a wall where SLAM diverged (chefbot_navigation/README.md)."""
+    x, y, yaw = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (x, y, yaw))
+    ok = np.ones(len(x), dtype=bool)
+    if len(x) == 0:
+        return ok
+    if cfg.view_clear > 0:
+        cone = np.linspace(-cfg.camera_fov / 2, cfg.camera_fov / 2, max(3, int(np.ceil(cfg.camera_fov / 0.1)) + 1))
+        ok &= rays_free(occ, x, y, yaw[:, None] + cone[None, :], cfg.view_clear).all(axis=1)
+    if cfg.spin_open_share > 0 and cfg.spin_clear > 0:
+        around = np.linspace(-math.pi, math.pi, 24, endpoint=False)
+        share = rays_free(occ, x, y, np.broadcast_to(around, (len(x), len(around))), cfg.spin_clear).mean(axis=1)
+        ok &= share >= cfg.spin_open_share
+    return ok
+
+
+def goal_headings(gx: np.ndarray, gy: np.ndarray, aim: tuple[float, float], robot: Pose2D) -> np.ndarray:
+    """Heading (rad) of goals at (gx, gy) (m): facing ``aim`` (the frontier), or, for a goal within 0.3 m of
+    it, on along the way from the robot (from the known side into the unknown)."""
+    gx, gy = np.asarray(gx, dtype=float), np.asarray(gy, dtype=float)
+    face = np.arctan2(aim[1] - gy, aim[0] - gx)
+    along = np.where(np.hypot(gx - robot.x, gy - robot.y) > 1e-6, np.arctan2(gy - robot.y, gx - robot.x), robot.yaw)
+    return np.where(np.hypot(aim[0] - gx, aim[1] - gy) > 0.3, face, along)
 
 
 def find_frontiers(occ: OccupancyMap, robot: Pose2D, cfg: ExploreConfig,
@@ -250,7 +322,8 @@ def scan_frontiers(occ: OccupancyMap, robot: Pose2D, cfg: ExploreConfig,
     cost = np.where(passable, 1.0, np.inf)
     travel, _ = MCP_Geometric(cost).find_costs([(int(r0), int(c0))])
     travel = travel * res
-    labels, n = ndimage.label(frontier_mask(occ, cfg.min_pocket_area), structure=np.ones((3, 3)))
+    labels, n = ndimage.label(frontier_mask(occ, cfg.min_pocket_area, cfg.pocket_min_occupied),
+                              structure=np.ones((3, 3)))
     scan = FrontierScan([])
     if n == 0:
         return scan
@@ -299,16 +372,17 @@ def scan_frontiers(occ: OccupancyMap, robot: Pose2D, cfg: ExploreConfig,
             seen = line_of_sight(occ, gx[idx], gy[idx], tx, ty)
             if seen.any():
                 idx, score = idx[seen], score[seen]
-        k = idx[np.argmin(score)]
-        x, y = float(gx[k]), float(gy[k])
         if cfg.view_distance > 0:
             cx, cy = tx, ty
         # face the frontier; a goal on the frontier itself faces on along the way it was reached
-        # (from the known side into the unknown)
-        if math.hypot(cy - y, cx - x) > 0.3:
-            yaw = math.atan2(cy - y, cx - x)
-        else:
-            yaw = math.atan2(y - robot.y, x - robot.x) if math.hypot(y - robot.y, x - robot.x) > 1e-6 else robot.yaw
+        yaws = goal_headings(gx[idx], gy[idx], (cx, cy), robot)
+        seeing = camera_view_ok(occ, gx[idx], gy[idx], yaws, cfg)
+        if not seeing.any():
+            scan.blind += 1
+            continue
+        best = int(np.argmin(np.where(seeing, score, np.inf)))
+        k, yaw = idx[best], float(yaws[best])
+        x, y = float(gx[k]), float(gy[k])
         scan.frontiers.append(Frontier((cx, cy), length, Pose2D(x, y, yaw), float(travel[gr[k], gc[k]]), cells))
     scan.frontiers.sort(key=lambda f: f.travel - cfg.gain_weight * f.length)
     return scan
@@ -346,7 +420,7 @@ def final_line(occ: OccupancyMap, scan: FrontierScan, blacklist: Blacklist, elap
     state = progress(occ, scan.left, elapsed, min_pocket_area).removeprefix("explore: ")
     return (f"explore: finished ({reason}) after {elapsed:.0f} s sim time; {state}"
             f" [{len(scan.frontiers)} open, {scan.blacklisted} given up, {scan.unreachable} unreachable, "
-            f"{scan.small} too small]; goals given up: {given_up}")
+            f"{scan.blind} blind, {scan.small} too small]; goals given up: {given_up}")
 
 
 def stop_reason(scan: FrontierScan, elapsed: float, known: float, stall: ProgressWatch,

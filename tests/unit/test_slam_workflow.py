@@ -1,0 +1,54 @@
+"""tools/slam_workflow.py's map judging (no master): the saved map carried into the world through the
+registration, and its quality against the world raster (the `make demo SLAM=1` / slam_workflow.test oracle)."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from chefbot_common.geometry import Pose2D
+from chefbot_common.grid import GridInfo, OccupancyMap
+from chefbot_common.map_io import load_map
+
+ROOT = Path(__file__).resolve().parents[2]
+ROOM_MAP = ROOT / "tests" / "test" / "worlds" / "slam_room_map.yaml"
+
+
+sys.path.insert(0, str(ROOT / "tools"))
+import slam_workflow as wf  # noqa: E402  (tools/ is no package)
+
+
+def _seen_from(truth: OccupancyMap, frame: Pose2D) -> OccupancyMap:
+    """The raster as a SLAM map whose frame sits at ``frame`` in the world, on a grid 1 m larger each way."""
+    info = GridInfo(truth.info.resolution, truth.info.width + 40, truth.info.height + 40,
+                    truth.info.origin_x - 1.0, truth.info.origin_y - 1.0)
+    return wf.in_world(truth, OccupancyMap(info, np.full((info.height, info.width), -1, dtype=np.int8)),
+                       frame.inverse())
+
+
+def test_a_rotated_but_good_map_is_judged_good_and_its_frame_found():
+    truth = load_map(ROOM_MAP)
+    frame = Pose2D(0.12, -0.08, math.radians(2.5))
+    saved = _seen_from(truth, frame)
+    q, align = wf.judge_map(saved, truth, (0.0, 0.0))
+    assert abs(align.x - frame.x) < 0.03 and abs(align.y - frame.y) < 0.03 and abs(align.yaw - frame.yaw) < 0.005
+    assert q.matched > 0.97 and q.false_occupied < 0.02 and q.coverage > 0.95
+    back = wf.in_world(saved, truth, align.pose)
+    assert back.info == truth.info and np.mean((back.data > 50) == (truth.data > 50)) > 0.99
+
+
+def test_a_doubled_wall_and_an_unseen_corner_show_in_the_figures():
+    truth = load_map(ROOM_MAP)
+    bad = OccupancyMap(truth.info, truth.data.copy())
+    occupied = np.argwhere(truth.data > 50)
+    ghost = occupied + [0, 8]                                # every wall drawn a second time 0.4 m east
+    ghost = ghost[(ghost[:, 1] < truth.info.width) & (truth.data[ghost[:, 0], ghost[:, 1]] == 0)]
+    bad.data[ghost[::2, 0], ghost[::2, 1]] = 100
+    free = truth.data == 0
+    corner = np.zeros_like(free)
+    corner[: truth.info.height // 3, : truth.info.width // 3] = True
+    bad.data[corner & free] = -1
+    q, _ = wf.judge_map(bad, truth, (0.0, 0.0))
+    assert q.false_occupied > 0.1 and q.coverage < 0.95

@@ -1,0 +1,213 @@
+"""The book's ch. 4 hand-over, map -> save -> localize, on a running ``gmapping_demo.launch explore:=true``.
+
+Shared by ``make demo SLAM=1`` (tools/slam_demo.py) and the slam_workflow rostests
+(tests/test/slam_workflow.test, chefbot_navigation/test/manual/slam_workflow.test):
+
+1. :class:`ExploreWatch` waits for ``explore/done`` (latched Bool) and hands each of
+   explore's progress lines (from ``/rosout_agg``) to a callback;
+2. :func:`save_map` runs our ``map_saver`` and reads the files back;
+3. :func:`slam_pose` is SLAM's last ``map -> base_footprint`` (amcl's initial pose:
+   the saved map's frame is SLAM's map frame);
+4. :func:`stop_mapping` kills ``slam`` and ``explore`` and waits until they are gone;
+5. :func:`localization_commands`: our ``map_server`` on the saved file and our ``amcl``
+   started at that pose (``move_base`` keeps running and takes the served map);
+   :func:`wait_localized` waits for amcl, :func:`clear_costmaps` drops the scan obstacles
+   marked while mapping;
+6. :func:`judge_map` (test oracle: reads the world raster): map quality and the saved
+   map's pose in the world (``map_align.align_maps``, align_tables' registration).
+
+Needs rospy initialised on the launch's master; wall-clock timeouts throughout (the
+sim may run slower or faster than real time).
+"""
+from __future__ import annotations
+
+import subprocess
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import rosnode
+import rospy
+import tf2_ros
+from rosgraph_msgs.msg import Log
+from std_msgs.msg import Bool
+
+from chefbot_common.geometry import Pose2D, yaw_from_quaternion
+from chefbot_common.grid import OccupancyMap
+from chefbot_common.map_io import load_map
+
+ROOT = Path(__file__).resolve().parent.parent
+NAV_LAUNCH = ROOT / "chefbot_navigation" / "launch"
+
+
+class WorkflowError(RuntimeError):
+    """A stage of the workflow failed; the message says which and why."""
+
+
+class ExploreWatch:
+    """Follows the ``explore`` node: its log lines (``explore: ...``) and its latched ``explore/done``."""
+
+    def __init__(self, node: str = "/explore") -> None:
+        self.node = node
+        self.done: bool | None = None
+        self.lines: list[str] = []
+        self.t_start: float | None = None      # sim s of explore's first line
+        self._lock = threading.Lock()
+        self._subs = [rospy.Subscriber(f"{node}/done", Bool, self._on_done, queue_size=1),
+                      rospy.Subscriber("/rosout_agg", Log, self._on_log, queue_size=100)]
+
+    def _on_done(self, msg: Bool) -> None:
+        self.done = bool(msg.data)
+
+    def _on_log(self, msg: Log) -> None:
+        if msg.name == self.node and msg.msg.startswith("explore:"):
+            with self._lock:
+                if self.t_start is None:
+                    self.t_start = msg.header.stamp.to_sec()
+                self.lines.append(msg.msg)
+
+    def wait(self, timeout_wall: float, alive: Callable[[], bool] = lambda: True,
+             echo: Callable[[str], None] | None = None) -> bool:
+        """Wait for ``explore/done``; echo each new log line; True = the map is complete.
+
+        Raises WorkflowError when the wall-clock timeout runs out or ``alive()`` turns false."""
+        deadline, shown, next_check = time.monotonic() + timeout_wall, 0, 0.0
+        while self.done is None:
+            with self._lock:
+                new, shown = self.lines[shown:], len(self.lines)
+            for line in new if echo else []:
+                echo(line)
+            if not alive():
+                raise WorkflowError("the simulation / SLAM launch stopped during exploration")
+            if shown and time.monotonic() > next_check:       # explore is up: it and slam must stay up
+                next_check = time.monotonic() + 5.0
+                gone = [n for n in ("/slam", self.node) if n not in rosnode.get_node_names()]
+                if gone and self.done is None:
+                    raise WorkflowError(f"{', '.join(gone)} exited during exploration (explore/done never came)")
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise WorkflowError(f"exploration did not end within {timeout_wall:.0f} s wall time")
+            time.sleep(0.2)
+        time.sleep(0.5)                 # explore logs its final line just before publishing done
+        with self._lock:
+            new = self.lines[shown:]
+        for line in new if echo else []:
+            echo(line)
+        return self.done
+
+    def final_line(self) -> str:
+        """explore's ``explore: finished (...)`` line, or "" when none came."""
+        with self._lock:
+            return next((ln for ln in reversed(self.lines) if ln.startswith("explore: finished")), "")
+
+    def close(self) -> None:
+        for sub in self._subs:
+            sub.unregister()
+
+
+def save_map(prefix: Path, env: dict | None = None, timeout: float = 120.0) -> OccupancyMap:
+    """``map_saver -f prefix`` on the current master; the saved map read back from ``prefix.yaml``."""
+    prefix.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        r = subprocess.run(["rosrun", "chefbot_navigation", "map_saver", "-f", str(prefix)], env=env,
+                           capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as exc:
+        raise WorkflowError(f"map_saver wrote nothing within {timeout:.0f} s") from exc
+    yaml = prefix.with_suffix(".yaml")
+    if r.returncode != 0 or not yaml.is_file():
+        raise WorkflowError(f"map_saver failed (exit {r.returncode}): {(r.stderr or r.stdout).strip()[-500:]}")
+    return load_map(yaml)
+
+
+def slam_pose(buffer: tf2_ros.Buffer, timeout: float = 10.0, map_frame: str = "map",
+              base_frame: str = "base_footprint") -> Pose2D:
+    """SLAM's latest ``map -> base_footprint`` (m, rad)."""
+    try:
+        t = buffer.lookup_transform(map_frame, base_frame, rospy.Time(0), rospy.Duration(timeout)).transform
+    except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
+        raise WorkflowError(f"no tf {map_frame} -> {base_frame} from SLAM: {exc}") from exc
+    q = t.rotation
+    return Pose2D(t.translation.x, t.translation.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+
+
+def stop_mapping(nodes: tuple[str, ...] = ("/slam", "/explore"), timeout: float = 30.0) -> None:
+    """Kill the mapping nodes and wait (wall clock) until none of them is registered any more."""
+    running = [n for n in nodes if n in rosnode.get_node_names()]
+    if running:
+        rosnode.kill_nodes(running)
+    deadline = time.monotonic() + timeout
+    while any(n in rosnode.get_node_names() for n in nodes):
+        if time.monotonic() > deadline:
+            raise WorkflowError(f"{', '.join(nodes)} still running {timeout:.0f} s after rosnode kill")
+        time.sleep(0.2)
+
+
+def localization_commands(map_yaml: Path, start: Pose2D, cov: float = 0.01) -> list[list[str]]:
+    """roslaunch commands: our map_server on ``map_yaml``, our amcl started at ``start`` (map frame) with
+    variance ``cov`` (m^2 and rad^2; SLAM's pose is good to a few cm)."""
+    return [["roslaunch", str(NAV_LAUNCH / "map_server.launch"), f"map_file:={map_yaml}"],
+            ["roslaunch", str(NAV_LAUNCH / "includes" / "amcl.launch.xml"), f"initial_pose_x:={start.x}",
+             f"initial_pose_y:={start.y}", f"initial_pose_a:={start.yaw}", f"initial_cov_xx:={cov}",
+             f"initial_cov_yy:={cov}", f"initial_cov_aa:={cov}"]]
+
+
+def wait_localized(alive: Callable[[], bool], timeout: float = 60.0) -> Pose2D:
+    """Wait (wall clock) for amcl's first ``amcl_pose`` (latched) on the saved map; its pose (map frame).
+    (tf alone cannot tell: SLAM's last future-dated map -> odom stays in a tf buffer for a while.)"""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    got: list = []
+    sub = rospy.Subscriber("amcl_pose", PoseWithCovarianceStamped, got.append, queue_size=1)
+    deadline = time.monotonic() + timeout
+    try:
+        while not got:
+            if not alive():
+                raise WorkflowError("map_server or amcl stopped")
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise WorkflowError(f"amcl published no amcl_pose within {timeout:.0f} s")
+            time.sleep(0.1)
+    finally:
+        sub.unregister()
+    p = got[0].pose.pose
+    return Pose2D(p.position.x, p.position.y, yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw")))
+
+
+def in_world(saved: OccupancyMap, truth: OccupancyMap, map_in_world: Pose2D) -> OccupancyMap:
+    """The saved map resampled onto the world raster's grid through ``map_in_world`` (nearest cell; -1 outside)."""
+    import numpy as np
+
+    ti = truth.info
+    rows, cols = np.mgrid[0:ti.height, 0:ti.width]
+    wx, wy = ti.cell_to_world(rows, cols)
+    inv = map_in_world.inverse()
+    c, s = np.cos(inv.yaw), np.sin(inv.yaw)
+    r, k = saved.info.world_to_cell(inv.x + c * wx - s * wy, inv.y + s * wx + c * wy)
+    ok = saved.info.inside(r, k)
+    data = np.full((ti.height, ti.width), -1, dtype=np.int8)
+    data[ok] = saved.data[r[ok], k[ok]]
+    return OccupancyMap(ti, data)
+
+
+def clear_costmaps(timeout: float = 10.0) -> None:
+    """``move_base/clear_costmaps``: forget the obstacles the scans marked while mapping (any phantom among
+    them), so the saved map alone is what the deliveries start from."""
+    from std_srvs.srv import Empty
+
+    try:
+        rospy.wait_for_service("move_base/clear_costmaps", timeout=timeout)
+        rospy.ServiceProxy("move_base/clear_costmaps", Empty)()
+    except (rospy.ROSException, rospy.ServiceException) as exc:
+        raise WorkflowError(f"move_base/clear_costmaps failed: {exc}") from exc
+
+
+def judge_map(saved: OccupancyMap, truth: OccupancyMap, start_xy: tuple[float, float]) -> tuple:
+    """(MapQuality, Alignment) of the saved map against the world raster (TEST ORACLE).  The saved map's frame
+    in the world (``alignment.pose``: map_in_world) comes from align_tables' registration; quality is
+    slam/metrics.map_quality of the saved map carried into the world through it (a SLAM map's frame is the
+    odometry frame at the first scan: a rotated but good map is not penalised), ``start_xy``: the robot's start
+    in the world (m)."""
+    from chefbot_navigation.map_align import align_maps
+    from chefbot_navigation.slam.metrics import map_quality
+
+    align = align_maps(truth, saved, source_name="world raster", target_name="saved SLAM map")
+    return map_quality(in_world(saved, truth, align.pose), truth, start_xy, search=1), align
