@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import math
 import sys
-import tempfile
 import unittest
 from pathlib import Path
 
 import numpy as np
+import rospkg
 import rospy
 import rostest
 import tf2_ros
@@ -61,7 +61,9 @@ class SlamWorkflowTest(unittest.TestCase):
         self.assertTrue(complete, f"exploration did not complete: {watch.final_line()}")
         self.assertLess(took, rospy.get_param("~max_explore_s"), watch.final_line())
         # 2. map_saver -> files; judged against the world raster (oracle)
-        prefix = Path(tempfile.mkdtemp(prefix="slam_workflow_")) / "map"
+        # beside the run's node logs (kept as the test's record, removed with the logs)
+        prefix = Path(rospkg.get_log_dir()) / rospy.get_param("/run_id", "") / "slam_workflow" / "map"
+        prefix.parent.mkdir(parents=True, exist_ok=True)
         saved = save_map(prefix)
         q, align = judge_map(saved, truth, (home.x, home.y))
         m = align.pose
