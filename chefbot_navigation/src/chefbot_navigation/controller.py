@@ -42,9 +42,9 @@ class ControllerParams:
     acc_lim_x: float = 0.8               # m/s^2
     decel_lim_x: float = 1.6             # m/s^2, only used to stop for a collision
     acc_lim_theta: float = 3.0           # rad/s^2
-    decel_lim_theta: float = 2.4         # rad/s^2, turns on the spot brake along w = sqrt(2 decel err) (< acc_lim_theta:
-                                         # the braking curve stays within reach of the acceleration limiter)
-    rotation_latency: float = 0.15       # s from a pose to the wheels obeying its command (pose age + control
+    decel_lim_theta: float = 2.4         # rad/s^2, turns on the spot brake along w = sqrt(2 decel err)
+                                         # (< acc_lim_theta: the curve stays within the limiter's reach)
+    rotation_latency: float = 0.2        # s from a pose to the wheels obeying its command (pose age + control
                                          # period + drive response): a turn brakes for the heading it will have then
     lookahead_time: float = 1.2          # s, lookahead = v * time, clamped to the two below
     min_lookahead_dist: float = 0.3      # m
