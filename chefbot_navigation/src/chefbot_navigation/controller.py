@@ -42,10 +42,10 @@ class ControllerParams:
     acc_lim_x: float = 0.8               # m/s^2
     decel_lim_x: float = 1.6             # m/s^2, only used to stop for a collision
     acc_lim_theta: float = 3.0           # rad/s^2
-    decel_lim_theta: float = 2.4         # rad/s^2, turns on the spot brake along w = sqrt(2 decel err)
-                                         # (< acc_lim_theta: the curve stays within the limiter's reach)
-    rotation_latency: float = 0.2        # s from a pose to the wheels obeying its command (pose age + control
-                                         # period + drive response): a turn brakes for the heading it will have then
+    decel_lim_theta: float = 2.0         # rad/s^2, turns on the spot brake at this (< acc_lim_theta: the
+                                         # braking curve stays within the rate limiter's reach)
+    rotation_latency: float = 0.1        # s from a pose to the wheels obeying its command (pose age, control
+                                         # period, drive response): a turn brakes that much earlier
     lookahead_time: float = 1.2          # s, lookahead = v * time, clamped to the two below
     min_lookahead_dist: float = 0.3      # m
     max_lookahead_dist: float = 0.7      # m
@@ -53,7 +53,7 @@ class ControllerParams:
     regulated_min_radius: float = 0.6    # m, slow down on curves tighter than this radius
     approach_gain: float = 0.8           # 1/s, v <= gain * distance to goal near the goal
     min_approach_vel: float = 0.04       # m/s
-    rotation_gain: float = 2.0           # 1/s, w <= gain * (predicted) heading error
+    rotation_gain: float = 2.5           # 1/s, w <= gain * heading error
     near_obstacle_slowdown: float = 0.6  # fraction of speed removed at cost 252 under the robot
     collision_horizon: float = 1.0       # s of forward simulation for the collision check
     reverse_dist: float = 0.25           # m, back up to goals closer than this behind the robot
@@ -255,19 +255,16 @@ class RegulatedPurePursuit:
                     return self._emit(0.0, 0.0, t, dt, "blocked", "no room to turn on the spot", where=where,
                                       emergency=True)
                 err = other
-        # brake to stop at the target heading: w <= sqrt(2 decel |err|), on the error predicted for when
-        # this command takes effect (the robot keeps its present turn rate for rotation_latency); a
-        # robot that will reach the target within that time is sent 0 and coasts in (the stop
-        # window is judged on the pose, next cycle).  Without the prediction, a 150 deg turn ended
-        # 4-5 deg past the goal after the zero command.
-        rest = abs(err)
-        if self.w * err > 0.0:
-            rest -= abs(self.w) * p.rotation_latency
-        if rest <= 0.0:
-            mag = 0.0
-        else:
-            mag = min(p.max_vel_theta, p.rotation_gain * rest, math.sqrt(2.0 * p.decel_lim_theta * rest))
-            mag = max(mag, p.min_in_place_vel_theta)
+        # the fastest turn rate from which the robot still stops at the target heading: it keeps
+        # turning for rotation_latency L (the command has not taken effect yet) and then brakes at
+        # decel_lim_theta a:  w L + w^2 / 2a = |err|  =>  w = sqrt((a L)^2 + 2 a |err|) - a L.
+        # Near the target this is |err| / L, far from it sqrt(2 a |err|) - a L.  The old law
+        # min(2 |err|, sqrt(2 acc_lim_theta |err|)) ignored the delay and braked at the full
+        # acceleration limit, so a 150 deg turn ended 4-5 deg past the goal, and its gain of 2/s made
+        # the last 0.5 rad of every turn creep.
+        a, lat = p.decel_lim_theta, p.rotation_latency
+        mag = min(p.max_vel_theta, p.rotation_gain * abs(err), math.sqrt((a * lat) ** 2 + 2.0 * a * abs(err)) - a * lat)
+        mag = max(mag, p.min_in_place_vel_theta)
         return self._emit(0.0, math.copysign(mag, err), t, dt, status,
                           "turning on the spot" if status == "following" else "")
 
