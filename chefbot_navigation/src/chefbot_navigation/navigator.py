@@ -63,7 +63,8 @@ class NavigatorParams:
     back_off_speed: float = 0.08          # m/s
     rotate_speed: float = 1.0             # rad/s of the rotate recovery
     narrow_patience: float = 5.0          # s blocked by the static map (a passage narrower than the robot) -> abort
-    replan_hysteresis: float = 0.3        # m: a periodic replan replaces a still-clear path only if this much shorter
+    replan_hysteresis: float = 0.3        # m: until the robot moved this far from where its clear path was made, a
+                                          # periodic replan replaces the path only if this much shorter
 
     def __post_init__(self) -> None:
         if self.planner_frequency < 0.0:
@@ -286,6 +287,7 @@ class Navigator:
         self.costmap = costmap
         self.goal: Goal | None = None
         self.plan: Plan | None = None
+        self.plan_from: Pose2D | None = None     # where the robot stood when self.plan was made
         self.state = "idle"
         self.status = "idle"            # human-readable goal status (the last event)
         self._events: list[str] = []
@@ -464,15 +466,15 @@ class Navigator:
         if (self.need_plan and (self.plan is None or due)) or periodic:
             plan, err = self._try_plan(pose, t)
             if plan is not None and self.plan is not None and not self.need_plan and \
+                    pose.distance(self.plan_from) < self.p.replan_hysteresis and \
                     path_length(plan.points) > remaining_length(self.plan.points, pose.x, pose.y) \
                     - self.p.replan_hysteresis:
-                # the current path is clear and the new one is not clearly shorter: keep it.  Around an
-                # obstacle with two near-equal ways (a table between the robot and the goal) the plan
-                # from a pose a few mm on flipped sides, and the robot turned back after a half turn
+                # the robot has hardly moved (turning on the spot), the current path is clear and the
+                # new one is not clearly shorter: keep it.  Round a table with two near-equal ways the
+                # plan from a pose a few mm off flipped sides, and the robot turned back after half a turn
                 self.last_valid_plan = t
-                plan = None
             elif plan is not None:
-                self.plan = plan
+                self.plan, self.plan_from = plan, pose
                 new_plan = plan
                 self.need_plan = False
                 self.last_valid_plan = t
