@@ -21,6 +21,13 @@ The book's ``diff_tf`` moved the base along the chord with the heading at
 the *start* of the step, i.e. with the wrong sign of the arc's lateral
 offset; the exact arc above has no such error for any step length.
 
+Time: every estimate carries the time ``t`` its encoder data describe (the caller passes the
+arrival time of the reading, see :class:`TickPairer`), not the time it is published at, so
+``tf`` users that look the pose up at a sensor's stamp (amcl at the scan stamp) get the pose
+of that moment; an IMU sample is placed in time the same way (the wheels' turning after it
+is added).  Stamping the publishing timer's time instead made tf ``odom → base_footprint``
+lag the robot by ~50 ms: 5-7 degrees of heading in a 2 rad/s turn (README, ``diff_tf``).
+
 Pose covariance is propagated with the usual linearised model: each wheel's
 travel has variance ``k * |travel|`` (m^2, k = ``wheel_slip_var`` in m^2/m), so
 the uncertainty grows with distance driven, never while standing still.
@@ -28,6 +35,7 @@ the uncertainty grows with distance driven, never while standing still.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,6 +46,7 @@ from chefbot_common.geometry import wrap_angle
 # Variance reported for the pose/twist components a planar robot cannot
 # observe (z, roll, pitch): large so that filters ignore them.
 UNOBSERVED_VAR = 1e6
+WHEEL_HISTORY_S = 1.0   # s of wheel turning kept to place IMU samples in time (>> imu_delay)
 
 
 def integrate_arc(x: float, y: float, theta: float, dl: float, dr: float,
@@ -65,14 +74,19 @@ class OdometryConfig:
     twist_linear_var: float = 1e-3    # variance of the reported linear speed ((m/s)^2)
     twist_angular_var: float = 1e-2   # variance of the reported yaw rate ((rad/s)^2)
     imu_timeout: float = 0.25         # s: an IMU yaw older than this is stale, the wheels give the heading
+    twist_window: float = 0.1         # s: the reported speeds average the steps of at least this span
+    imu_delay: float = 0.0            # s: an IMU yaw describes its arrival time minus this (sensor + line latency)
 
     def __post_init__(self) -> None:
-        for name in ("ticks_meter", "base_width", "max_wheel_speed", "imu_timeout"):
+        for name in ("ticks_meter", "base_width", "max_wheel_speed", "imu_timeout", "twist_window"):
             if not (getattr(self, name) > 0 and math.isfinite(getattr(self, name))):
                 raise ValueError(f"{name} must be a positive finite number, got {getattr(self, name)!r}")
         for name in ("wheel_slip_var", "min_pose_var", "twist_linear_var", "twist_angular_var"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not 0.0 <= self.imu_delay < min(self.imu_timeout, WHEEL_HISTORY_S):
+            raise ValueError(f"imu_delay must be >= 0 s and below imu_timeout ({self.imu_timeout} s), "
+                             f"got {self.imu_delay!r}")
 
 
 @dataclass
@@ -119,6 +133,10 @@ class DiffOdometry:
         self.v = self.w = 0.0
         self.resets = 0
         self._p = np.diag([cfg.min_pose_var] * 3)   # x, y, theta covariance
+        # (t, distance, heading) accumulated, over the last twist_window: the reported speeds
+        self._travel: deque[tuple[float, float, float]] = deque()
+        # (t, cumulative wheel turning rad) of the last WHEEL_HISTORY_S: places IMU samples in time
+        self._wheel_hist: deque[tuple[float, float]] = deque()
 
     def set_ticks(self, left: int | None = None, right: int | None = None) -> None:
         """Record the latest raw cumulative counters (ticks); ``None`` leaves a wheel unchanged."""
@@ -135,12 +153,23 @@ class DiffOdometry:
         self._yaw_imu_t = t
         self._imu_seq += 1
 
+    def _wheel_turn_since(self, t_sample: float | None) -> float:
+        """Wheel turning (rad) from ``t_sample`` (s) to the newest reading, interpolated in the recent
+        history of the wheels' cumulative turning (0 for a sample without a time: it describes now)."""
+        if t_sample is None or len(self._wheel_hist) < 2:
+            return 0.0
+        ts, cum = zip(*self._wheel_hist, strict=True)
+        return cum[-1] - float(np.interp(t_sample, ts, cum))
+
     def _imu_fresh(self, t: float) -> bool:
         return self._yaw_imu is not None and (self._yaw_imu_t is None or
                                               t - self._yaw_imu_t <= self.cfg.imu_timeout)
 
     def _rebaseline(self, t: float) -> None:
         self._base_l, self._base_r = self._pos_l, self._pos_r
+        self._travel.clear()
+        self._wheel_hist.clear()
+        self._wheel_hist.append((t, 0.0))
         self._anchor_imu(t)
 
     def _anchor_imu(self, t: float) -> None:
@@ -181,14 +210,20 @@ class DiffOdometry:
 
         d = 0.5 * (dl + dr)
         wheel_dtheta = (dr - dl) / cfg.base_width
+        self._wheel_hist.append((t, self._wheel_hist[-1][1] + wheel_dtheta if self._wheel_hist else wheel_dtheta))
+        while self._wheel_hist[0][0] < t - WHEEL_HISTORY_S:
+            self._wheel_hist.popleft()
         # Heading from the IMU: on a new sample, the IMU's turn since the anchor sample minus what
         # the wheels already added in between; between samples the wheels bridge (and are corrected
         # by the next sample), so a late or lost sample loses no turning.  A stale IMU (silent for
         # imu_timeout) hands the heading to the wheels until a sample re-anchors it.
         self.imu_used = self._imu_fresh(t) and self._yaw_imu_base is not None
         if self.imu_used and self._imu_seq != self._imu_base_seq:
-            dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base) - self._wheel_since_imu
-            self._yaw_imu_base, self._imu_base_seq, self._wheel_since_imu = self._yaw_imu, self._imu_seq, 0.0
+            # the sample's turn since the anchor, plus the wheels' turning after the sample's time
+            # (its arrival minus imu_delay): the heading then describes t, as the position does
+            after = self._wheel_turn_since(None if self._yaw_imu_t is None else self._yaw_imu_t - cfg.imu_delay)
+            dtheta = wrap_angle(self._yaw_imu - self._yaw_imu_base) - self._wheel_since_imu + after
+            self._yaw_imu_base, self._imu_base_seq, self._wheel_since_imu = self._yaw_imu, self._imu_seq, after
         elif self.imu_used:
             dtheta = wheel_dtheta
             self._wheel_since_imu += wheel_dtheta
@@ -203,11 +238,23 @@ class DiffOdometry:
         self._propagate_cov(d, dtheta, dl, dr)
         self.x, self.y, th = integrate_arc(self.x, self.y, self.theta, dl_eff, dr_eff, cfg.base_width)
         self.theta = wrap_angle(th)
-        self.v = d / dt
-        self.w = dtheta / dt
+        self.v, self.w = self._twist(t, d, dtheta)
         self._base_l, self._base_r = self._pos_l, self._pos_r
         self._t_last = t
         return self.state(t)
+
+    def _twist(self, t: float, d: float, dtheta: float) -> tuple[float, float]:
+        """Speeds (m/s, rad/s) over the steps of the last ``twist_window`` s (at least one step):
+        steps at the board's line rate (30 Hz) timed by arrival would make single-step speeds jitter."""
+        if not self._travel:
+            self._travel.append((self._t_last, 0.0, 0.0))
+        _, dist0, head0 = self._travel[-1]
+        self._travel.append((t, dist0 + d, head0 + dtheta))
+        while len(self._travel) > 2 and t - self._travel[1][0] >= self.cfg.twist_window:
+            self._travel.popleft()
+        t0, dist0, head0 = self._travel[0]
+        _, dist1, head1 = self._travel[-1]
+        return (dist1 - dist0) / (t - t0), (head1 - head0) / (t - t0)
 
     def _propagate_cov(self, d: float, dtheta: float, dl: float, dr: float) -> None:
         """First-order covariance propagation for one step (midpoint heading)."""
@@ -243,3 +290,31 @@ def silent_encoders(last_ticks: dict[str, float | None], t: float, timeout: floa
     if timeout <= 0 or any(v is None for v in last_ticks.values()):
         return ""
     return ", ".join(f"{k} {t - v:.1f} s ago" for k, v in last_ticks.items() if t - v > timeout)
+
+
+class TickPairer:
+    """Pair the two wheels' readings of one encoder line and give the pair its time.
+
+    The driver publishes each board line's counters as two unstamped messages (``lwheel``,
+    ``rwheel``: std_msgs/Int32, as the book's), one after the other.  :meth:`add` collects them;
+    once both wheels have reported since the last pair it returns ``(left, right, t)``, ``t``
+    being the earlier of the two arrival times (s): the closest to when the board read the
+    counters that an unstamped message can tell.  A wheel reporting twice before the other (a
+    lost message) keeps its newer reading.
+    """
+
+    def __init__(self) -> None:
+        self._left: tuple[int, float] | None = None
+        self._right: tuple[int, float] | None = None
+
+    def add(self, t: float, left: int | None = None, right: int | None = None) -> tuple[int, int, float] | None:
+        """Record a reading (raw ticks) that arrived at ``t`` s; the completed pair, or None."""
+        if left is not None:
+            self._left = (left, t)
+        if right is not None:
+            self._right = (right, t)
+        if self._left is None or self._right is None:
+            return None
+        (lv, lt), (rv, rt) = self._left, self._right
+        self._left = self._right = None
+        return lv, rv, min(lt, rt)

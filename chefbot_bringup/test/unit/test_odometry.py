@@ -185,3 +185,76 @@ def test_silent_encoders_names_the_stale_wheels() -> None:
     assert silent_encoders({"lwheel": 8.0, "rwheel": 8.0}, 10.0, 1.0) == "lwheel 2.0 s ago, rwheel 2.0 s ago"
     assert silent_encoders({"lwheel": 0.0, "rwheel": 0.0}, 100.0, 0.0) == ""        # 0 = check off
     assert silent_encoders({"lwheel": 12.0, "rwheel": 12.0}, 10.0, 1.0) == ""       # time jumped back: fresh
+
+
+# --- time: estimates describe the encoder data's time (diff_tf's stamps) ----------------------
+
+
+def test_tick_pairer_pairs_one_line_and_takes_its_arrival_time() -> None:
+    from chefbot_bringup.odometry import TickPairer
+    p = TickPairer()
+    assert p.add(1.000, left=10) is None
+    assert p.add(1.001, right=20) == (10, 20, 1.000)          # the earlier arrival of the line
+    assert p.add(1.034, right=21) is None                      # the other order works too
+    assert p.add(1.035, left=11) == (11, 21, 1.034)
+    # a lost right message: the left's newer reading is kept, the pair completes with it
+    assert p.add(1.067, left=12) is None
+    assert p.add(1.100, left=13) is None
+    assert p.add(1.101, right=23) == (13, 23, 1.100)
+
+
+def _turn_run(odo: DiffOdometry, w: float, rate: float, imu_delay: float, seconds: float,
+              imu_after_line: float = 0.001):
+    """Turn on the spot at ``w`` rad/s; encoder lines at ``rate`` Hz arrive on time, each followed
+    ``imu_after_line`` s later by an IMU yaw that is ``imu_delay`` s old.  Yields (t, true heading)."""
+    half = odo.cfg.base_width / 2
+    odo.set_ticks(0, 0)
+    odo.set_imu_yaw(0.0, 0.0)
+    odo.update(0.0)
+    for k in range(1, round(seconds * rate) + 1):
+        t = k / rate
+        ticks = round(w * t * half * TPM)
+        odo.set_ticks(-ticks, ticks)
+        odo.update(t)
+        yield t, w * t
+        odo.set_imu_yaw(w * (t + imu_after_line - imu_delay), t + imu_after_line)
+
+
+def test_heading_describes_the_encoder_time_with_a_late_imu() -> None:
+    """The estimate at time t is the heading at t: the IMU's yaw (imu_delay old when it arrives, the
+    line after the encoder line) plus the wheels' turning since then -- not the IMU's yaw alone,
+    which lagged one line period plus the IMU's own delay (~3 deg at 2 rad/s).  Fails when the
+    wheels' turning after the sample is dropped or imu_delay is ignored."""
+    delay = 0.02
+    odo = make(imu_delay=delay)
+    errs = [abs(odo.theta - math.remainder(truth, 2 * math.pi))
+            for t, truth in _turn_run(odo, 2.0, 30.0, delay, 2.0) if t > 0.2]
+    assert odo.imu_used
+    assert max(errs) < math.radians(0.1)
+    # the same run without placing the sample in time: the heading lags
+    odo = make(imu_delay=0.0)
+    errs = [abs(odo.theta - math.remainder(truth, 2 * math.pi))
+            for t, truth in _turn_run(odo, 2.0, 30.0, delay, 2.0) if t > 0.2]
+    assert max(errs) > math.radians(2.0)
+
+
+def test_state_time_is_the_update_time_and_twist_is_smoothed() -> None:
+    odo = started()
+    w = odo.cfg.base_width / 2 * 1.0
+    rng = np.random.default_rng(3)
+    t = 0.0
+    for _ in range(60):                       # 30 Hz lines with 5 ms arrival jitter
+        t += 1 / 30 + rng.uniform(-0.005, 0.005)
+        ticks = round(w * t * TPM)
+        odo.set_ticks(-ticks, ticks)
+        st = odo.update(t)
+        assert st.t == t
+    assert st.w == pytest.approx(1.0, abs=0.05)
+    assert st.v == pytest.approx(0.0, abs=1e-3)
+
+
+def test_imu_delay_is_checked() -> None:
+    with pytest.raises(ValueError, match="imu_delay"):
+        OdometryConfig(imu_delay=-0.01)
+    with pytest.raises(ValueError, match="imu_delay"):
+        OdometryConfig(imu_delay=0.3, imu_timeout=0.25)

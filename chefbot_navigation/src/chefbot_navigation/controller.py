@@ -42,6 +42,10 @@ class ControllerParams:
     acc_lim_x: float = 0.8               # m/s^2
     decel_lim_x: float = 1.6             # m/s^2, only used to stop for a collision
     acc_lim_theta: float = 3.0           # rad/s^2
+    decel_lim_theta: float = 2.0         # rad/s^2, turns on the spot brake at this (< acc_lim_theta: the
+                                         # braking curve stays within the rate limiter's reach)
+    rotation_latency: float = 0.1        # s from a pose to the wheels obeying its command (pose age, control
+                                         # period, drive response): a turn brakes that much earlier
     lookahead_time: float = 1.2          # s, lookahead = v * time, clamped to the two below
     min_lookahead_dist: float = 0.3      # m
     max_lookahead_dist: float = 0.7      # m
@@ -49,7 +53,7 @@ class ControllerParams:
     regulated_min_radius: float = 0.6    # m, slow down on curves tighter than this radius
     approach_gain: float = 0.8           # 1/s, v <= gain * distance to goal near the goal
     min_approach_vel: float = 0.04       # m/s
-    rotation_gain: float = 2.0           # 1/s, w = gain * heading error (then limited)
+    rotation_gain: float = 2.5           # 1/s, w <= gain * heading error
     near_obstacle_slowdown: float = 0.6  # fraction of speed removed at cost 252 under the robot
     collision_horizon: float = 1.0       # s of forward simulation for the collision check
     reverse_dist: float = 0.25           # m, back up to goals closer than this behind the robot
@@ -60,9 +64,12 @@ class ControllerParams:
     def __post_init__(self) -> None:
         for name in ("max_vel_x", "max_vel_theta", "acc_lim_x", "decel_lim_x", "acc_lim_theta",
                      "lookahead_time", "min_lookahead_dist", "xy_goal_tolerance", "yaw_goal_tolerance",
-                     "controller_frequency", "collision_horizon", "rotation_gain", "approach_gain"):
+                     "controller_frequency", "collision_horizon", "rotation_gain", "approach_gain",
+                     "decel_lim_theta"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0.0 <= self.rotation_latency < 1.0:
+            raise ValueError(f"rotation_latency must be in [0, 1) s, got {self.rotation_latency}")
         if self.max_lookahead_dist < self.min_lookahead_dist:
             raise ValueError("max_lookahead_dist must be >= min_lookahead_dist")
         if not 0.0 <= self.near_obstacle_slowdown < 1.0:
@@ -248,8 +255,15 @@ class RegulatedPurePursuit:
                     return self._emit(0.0, 0.0, t, dt, "blocked", "no room to turn on the spot", where=where,
                                       emergency=True)
                 err = other
-        # decelerate to stop exactly at the target heading: w <= sqrt(2 a |err|)
-        mag = min(p.max_vel_theta, p.rotation_gain * abs(err), math.sqrt(2.0 * p.acc_lim_theta * abs(err)))
+        # the fastest turn rate from which the robot still stops at the target heading: it keeps
+        # turning for rotation_latency L (the command has not taken effect yet) and then brakes at
+        # decel_lim_theta a:  w L + w^2 / 2a = |err|  =>  w = sqrt((a L)^2 + 2 a |err|) - a L.
+        # Near the target this is |err| / L, far from it sqrt(2 a |err|) - a L.  The old law
+        # min(2 |err|, sqrt(2 acc_lim_theta |err|)) ignored the delay and braked at the full
+        # acceleration limit, so a 150 deg turn ended 4-5 deg past the goal, and its gain of 2/s made
+        # the last 0.5 rad of every turn creep.
+        a, lat = p.decel_lim_theta, p.rotation_latency
+        mag = min(p.max_vel_theta, p.rotation_gain * abs(err), math.sqrt((a * lat) ** 2 + 2.0 * a * abs(err)) - a * lat)
         mag = max(mag, p.min_in_place_vel_theta)
         return self._emit(0.0, math.copysign(mag, err), t, dt, status,
                           "turning on the spot" if status == "following" else "")

@@ -64,6 +64,8 @@ class NavigatorParams:
     back_off_speed: float = 0.08          # m/s
     rotate_speed: float = 1.0             # rad/s of the rotate recovery
     narrow_patience: float = 5.0          # s blocked by the static map (a passage narrower than the robot) -> abort
+    replan_hysteresis: float = 0.3        # m: until the robot moved this far from where its clear path was made, a
+                                          # periodic replan replaces the path only if this much shorter
 
     def __post_init__(self) -> None:
         if self.planner_frequency < 0.0:
@@ -75,6 +77,20 @@ class NavigatorParams:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.oscillation_timeout < 0.0:
             raise ValueError(f"oscillation_timeout must be >= 0 s, got {self.oscillation_timeout}")
+        if not self.replan_hysteresis >= 0.0:
+            raise ValueError(f"replan_hysteresis must be >= 0 m, got {self.replan_hysteresis}")
+
+
+def path_length(points: np.ndarray) -> float:
+    """Length (m) of a polyline (N, 2)."""
+    return float(np.sum(np.hypot(*np.diff(points, axis=0).T))) if len(points) > 1 else 0.0
+
+
+def remaining_length(points: np.ndarray, x: float, y: float) -> float:
+    """Length (m) still to drive along ``points`` from (x, y): to its nearest point, then along it."""
+    d = np.hypot(points[:, 0] - x, points[:, 1] - y)
+    i = int(np.argmin(d))
+    return float(d[i]) + path_length(points[i:])
 
 
 @dataclass(frozen=True)
@@ -272,6 +288,7 @@ class Navigator:
         self.costmap = costmap
         self.goal: Goal | None = None
         self.plan: Plan | None = None
+        self.plan_from: Pose2D | None = None     # where the robot stood when self.plan was made
         self.state = "idle"
         self.status = "idle"            # human-readable goal status (the last event)
         self._events: list[str] = []
@@ -459,8 +476,16 @@ class Navigator:
             self.need_plan = True
         if (self.need_plan and (self.plan is None or due)) or periodic:
             plan, err = self._try_plan(pose, t)
-            if plan is not None:
-                self.plan = plan
+            if plan is not None and self.plan is not None and not self.need_plan and \
+                    pose.distance(self.plan_from) < self.p.replan_hysteresis and \
+                    path_length(plan.points) > remaining_length(self.plan.points, pose.x, pose.y) \
+                    - self.p.replan_hysteresis:
+                # the robot has hardly moved (turning on the spot), the current path is clear and the
+                # new one is not clearly shorter: keep it.  Round a table with two near-equal ways the
+                # plan from a pose a few mm off flipped sides, and the robot turned back after half a turn
+                self.last_valid_plan = t
+            elif plan is not None:
+                self.plan, self.plan_from = plan, pose
                 new_plan = plan
                 self.need_plan = False
                 self.last_valid_plan = t

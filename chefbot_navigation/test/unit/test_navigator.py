@@ -262,3 +262,49 @@ def test_huge_goal_coordinate_reads_short_in_the_reason() -> None:
     res, _, _ = run(nav, Pose2D(-2.0, 0.0, 0.0))
     assert res.outcome == "aborted" and "off the map" in res.text
     assert "1e+300" in res.text and len(res.text) < 120, res.text
+
+
+class FlippingPlanner:
+    """Two equally long ways round an obstacle, alternating at every call (a symmetric table)."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+        self.direct = False     # True: the straight line (the obstacle is gone)
+
+    def plan(self, costmap, start, goal):
+        from chefbot_navigation.planners import Plan
+        self.calls += 1
+        side = 1.0 if self.calls % 2 else -1.0
+        pts = np.array([start, (start[0] + 1.0, start[1] + side), (goal[0], goal[1] + side), goal])
+        if self.direct:
+            pts = np.array([start, goal])
+        return Plan(points=pts, cells=np.zeros((0, 2)), cost=1.0, seconds=0.0)
+
+
+class RecordingController(StuckController):
+    def __init__(self) -> None:
+        super().__init__()
+        self.paths: list[np.ndarray] = []
+
+    def set_path(self, points, goal_yaw) -> None:
+        self.paths.append(np.asarray(points))
+
+
+def test_periodic_replan_keeps_a_clear_path_unless_clearly_shorter() -> None:
+    """Two near-equal ways round a table: a periodic replan must not flip the robot to the other side
+    (it turned back after half a turn, +2 s on table_5's leg in the firmware demo); a clearly shorter
+    new path is still taken."""
+    layers = LayeredCostmap(room(), CostmapParams())
+    ctrl, planner = RecordingController(), FlippingPlanner()
+    nav = Navigator(NavigatorParams(planner_frequency=1.0, oscillation_timeout=0.0), ControllerParams(),
+                    planner, ctrl, layers)
+    nav.set_goal(Goal(-1.0, -3.0, 0.0), 0.0)
+    pose = Pose2D(-4.0, -3.0, 0.0)
+    for k in range(35):
+        nav.step(k * DT, pose)
+    assert planner.calls >= 3, "periodic replanning did not run"
+    assert len(ctrl.paths) == 1, "the path flipped to the other side at a periodic replan"
+    # a clearly shorter plan (the way straight through opened) replaces it
+    planner.direct = True
+    nav.step(4.6, pose)
+    assert len(ctrl.paths) == 2 and len(ctrl.paths[-1]) == 2
