@@ -441,7 +441,7 @@ class Slam:
             pose = self.graph.poses[j]
             own = transform_points(pose, hits)
             lo, hi = own.min(axis=0) - margin, own.max(axis=0) + margin
-            far = np.abs(travel[owner] - travel[j]) >= c.refine_min_travel
+            far = (np.abs(travel[owner] - travel[j]) >= c.refine_min_travel) & (owner != j)
             use = far & np.all((pts >= lo) & (pts <= hi), axis=1)
             if use.sum() < c.min_match_beams:
                 continue
