@@ -3,7 +3,8 @@
 Per scan (time in float s, odometry pose of the base in ``odom``):
 
 1. Predict the base pose in ``map`` from the last keyframe and the odometry
-   delta since then.
+   delta since then (its yaw scaled by the turn scale learned from matched
+   in-place turns: wheels slip in spins, :meth:`Slam._calibrate_turn`).
 2. Only when the robot moved ``linearUpdate`` m / turned ``angularUpdate`` rad
    since the last keyframe (or ``temporalUpdate`` s passed, if > 0) is the scan
    processed: matched (correlative + refinement, :mod:`scan_matcher`) against a
@@ -18,6 +19,10 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
    keyframe that moved is re-integrated (its old ray-cast contribution is
    subtracted, the new one added: the grid stores unclamped log-odds sums, so
    this is exact; clamping is applied when the map is read).
+
+5. After the run (``slam_offline``), :meth:`Slam.refine`: every keyframe
+   re-matched against the keyframes driven more than ``refine_min_travel`` m
+   away before or after it, edges added, optimised, re-integrated.
 
 The map frame is the odometry frame at the first scan (map->odom = identity
 until corrections accumulate), like gmapping.
@@ -104,10 +109,9 @@ class SlamConfig:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
                     "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
-                    "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw", "refine_max_spread",
-                    "turn_calibration_min", "turn_scale_limit",
-                    "beams_per_dof", "max_xy", "sigma_xy_min", "sigma_yaw_min",
-                    "l_occ", "l_clamp")
+                    "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw",
+                    "refine_max_spread", "turn_calibration_min", "turn_scale_limit", "beams_per_dof", "max_xy",
+                    "sigma_xy_min", "sigma_yaw_min", "l_occ", "l_clamp")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
