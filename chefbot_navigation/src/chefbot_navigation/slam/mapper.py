@@ -90,7 +90,7 @@ class SlamConfig:
     edge_sigma_yaw: float = 0.01         # rad
     loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
     loop_sigma_yaw: float = 0.03         # rad
-    refine_passes: int = 2               # final global refinement passes (refine(); slam_offline runs them)
+    refine_passes: int = 0               # final global refinement passes (refine(); slam_offline --refine N)
     refine_min_travel: float = 3.0       # m; keyframes driven this close (before/after) are not a keyframe's reference
     refine_every: int = 2                # every n-th keyframe gets a refinement edge (the others follow by tracking)
     refine_xy: float = 0.2               # m, refinement search half-window
