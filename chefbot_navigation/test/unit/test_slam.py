@@ -248,7 +248,7 @@ def _spin(cfg: SlamConfig, odo_turn: float, blind_from: float):
 
 
 def test_turn_scale_is_learned_from_matched_spins():
-    slam, _ = _spin(SlamConfig(), 1.03, blind_from=1e9)
+    slam, _ = _spin(SlamConfig(turn_calibration=True), 1.03, blind_from=1e9)
     assert slam.stats.turn_scale == pytest.approx(1 / 1.03, abs=0.004), slam.stats
     off, _ = _spin(SlamConfig(turn_calibration=False), 1.03, blind_from=1e9)
     assert off.stats.turn_scale == 1.0
@@ -257,7 +257,7 @@ def test_turn_scale_is_learned_from_matched_spins():
 def test_learned_turn_scale_keeps_the_heading_through_a_blind_spin():
     # two turns seen, then a blind 3rd turn: the prediction alone carries the heading
     blind = 2 * 2 * math.pi
-    slam, yaw = _spin(SlamConfig(), 1.03, blind_from=blind)
+    slam, yaw = _spin(SlamConfig(turn_calibration=True), 1.03, blind_from=blind)
     off, _ = _spin(SlamConfig(turn_calibration=False), 1.03, blind_from=blind)
     err = abs(wrap_angle(slam.graph.poses[-1].yaw - yaw))
     err_off = abs(wrap_angle(off.graph.poses[-1].yaw - yaw))
