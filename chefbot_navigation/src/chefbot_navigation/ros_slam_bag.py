@@ -3,7 +3,8 @@
 Used by ``nodes/slam_offline`` and the benchmark.  All tf messages are loaded
 into one tf2 ``BufferCore`` whose cache spans the whole bag, then the scans
 are fed in stamp order to the same :class:`~chefbot_navigation.slam_io.SlamFrontend`
-the live node uses, so the offline map reproduces the live one.
+the live node uses, so the offline map reproduces the live one; then the core's final
+refinement passes (``refine_passes``, :meth:`~chefbot_navigation.slam.mapper.Slam.refine`) run.
 """
 from __future__ import annotations
 
@@ -120,6 +121,8 @@ def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", bas
             done += 1
             if progress is not None and (done % 50 == 0 or done == total):
                 progress(done, total, t0, st - first_t)
+        if done > skipped:
+            front.slam.refine()     # cfg.refine_passes final passes (0: none)
         wall = time.monotonic() - t0
     if done == skipped:
         raise BagError(f"{path}: no usable scan on '{scan_t}' ({skipped} skipped; first error: {first_error})")

@@ -182,8 +182,96 @@ def test_raw_odometry_map_is_worse():
     assert _double_walls(slam, segs) > 0.1
 
 
+def _perturbed_second_lap(yaw_error: float = 0.03):
+    """A tracked two-lap corridor map whose second lap, from one keyframe on, carries a heading error
+    (what a blind spin with slipping wheels leaves when no loop closure reaches it), re-integrated."""
+    slam, segs, _, _ = _run_corridor(SlamConfig(loop_closure=False, refine_passes=0), yaw_bias=0.006)
+    truth = square_route(laps=2.0)
+    k0 = next(i for i, k in enumerate(slam.keyframes) if k.travel > 30.0)      # 2nd lap, 2 m past the start corner
+    pivot = slam.graph.poses[k0]
+    turn = Pose2D(pivot.x, pivot.y, 0.0).compose(Pose2D(0.0, 0.0, yaw_error)).compose(Pose2D(-pivot.x, -pivot.y, 0.0))
+    slam.graph.poses[k0:] = [turn.compose(p) for p in slam.graph.poses[k0:]]
+    for e in slam.graph.edges:          # the edge into k0 is the blind one: odometry-sized
+        if e.j == k0 and e.i == k0 - 1:
+            e.z = slam.graph.poses[k0 - 1].inverse().compose(slam.graph.poses[k0])
+            e.sigma = (0.1, 0.1, 0.3)
+    slam._reintegrate()
+
+    def errors() -> np.ndarray:
+        return np.array([slam.graph.poses[i].distance(truth[int(round(k.t / 0.1))])
+                         for i, k in enumerate(slam.keyframes)])
+    return slam, segs, k0, errors
+
+
+def test_refinement_corrects_a_stretch_with_a_heading_error():
+    slam, segs, k0, errors = _perturbed_second_lap()
+    before, double_before = errors(), _double_walls(slam, segs)
+    # 1.7 deg about k0: up to 0.2 m off (the refinement window) along the rest of the lap
+    assert before[k0:].max() > 0.15 and double_before > 0.015, (before[k0:].max(), double_before)
+    edges = slam.refine(2)
+    after = errors()
+    assert edges > 0 and slam.stats.refine_edges == edges
+    assert after[k0:].max() < 0.06, (after[k0:].max(), edges)
+    assert after[:k0].max() < 0.06                       # the first lap stays where it was
+    assert _double_walls(slam, segs) < 0.01
+
+
+def test_refinement_without_leaving_out_the_own_stretch_keeps_the_error():
+    # the stretch's own keyframes agree with it: matched against them it looks consistent
+    slam, _, k0, errors = _perturbed_second_lap()
+    slam.cfg.refine_min_travel = 1e-3
+    slam.refine(2)
+    assert errors()[k0:].max() > 0.1, errors()[k0:].max()
+
+
+def test_refinement_passes_zero_changes_nothing():
+    slam, _, _, errors = _perturbed_second_lap()
+    before = errors()
+    assert slam.refine(0) == 0 and np.array_equal(errors(), before)
+
+
+def _spin(cfg: SlamConfig, odo_turn: float, blind_from: float):
+    """Spin in place 3 turns in the room (58 deg camera); odometry counts ``odo_turn`` times the true turn;
+    from ``blind_from`` rad on the camera sees nothing (no returns).  Returns the SLAM and the true yaw."""
+    segs = _room()
+    fov, n = math.radians(58), 160
+    angles = -fov / 2 + fov * np.arange(n) / n
+    slam = Slam(cfg)
+    step = math.radians(5)
+    yaw = 0.0
+    for k in range(int(3 * 2 * math.pi / step) + 1):
+        yaw = k * step
+        r = cast(segs, (0.3, 0.2), angles + yaw, 8.0) if yaw < blind_from else np.full(n, np.inf)
+        slam.add_scan(0.1 * k, scan_from_ranges(r, -fov / 2, fov / n, 0.05, 8.0, Pose2D(), 7.5),
+                      Pose2D(0.3, 0.2, yaw * odo_turn))
+    return slam, yaw
+
+
+def test_turn_scale_is_learned_from_matched_spins():
+    slam, _ = _spin(SlamConfig(turn_calibration=True), 1.03, blind_from=1e9)
+    assert slam.stats.turn_scale == pytest.approx(1 / 1.03, abs=0.004), slam.stats
+    off, _ = _spin(SlamConfig(turn_calibration=False), 1.03, blind_from=1e9)
+    assert off.stats.turn_scale == 1.0
+
+
+def test_learned_turn_scale_keeps_the_heading_through_a_blind_spin():
+    # two turns seen, then a blind 3rd turn: the prediction alone carries the heading
+    blind = 2 * 2 * math.pi
+    slam, yaw = _spin(SlamConfig(turn_calibration=True), 1.03, blind_from=blind)
+    off, _ = _spin(SlamConfig(turn_calibration=False), 1.03, blind_from=blind)
+    err = abs(wrap_angle(slam.graph.poses[-1].yaw - yaw))
+    err_off = abs(wrap_angle(off.graph.poses[-1].yaw - yaw))
+    assert err < 0.01 and err_off > 0.1, (err, err_off)     # 2 pi * 3 % = 0.19 rad uncorrected
+
+
 def test_config_rejects_bad_values():
     with pytest.raises(ValueError, match="delta"):
         Slam(SlamConfig(delta=0.0))
     with pytest.raises(ValueError, match="xmin"):
         Slam(SlamConfig(xmin=5.0, xmax=1.0))
+    with pytest.raises(ValueError, match="refine_passes"):
+        Slam(SlamConfig(refine_passes=-1))
+    with pytest.raises(ValueError, match="refine_every"):
+        Slam(SlamConfig(refine_every=0))
+    with pytest.raises(ValueError, match="turn_scale_limit"):
+        Slam(SlamConfig(turn_scale_limit=float("nan")))

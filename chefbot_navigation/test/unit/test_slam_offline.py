@@ -39,8 +39,8 @@ def short_bag(tmp_path_factory) -> Path:
 
 def test_cli_writes_map_and_tum_trajectory(short_bag, tmp_path):
     prefix, traj = tmp_path / "m", tmp_path / "traj.txt"
-    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(prefix), "--trajectory", str(traj)],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(prefix), "--trajectory", str(traj),
+                        "--refine", "1", "--turn-calibration"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "x real time" in r.stdout and "%" in r.stderr            # summary + progress bar
     occ = load_map(f"{prefix}.yaml")
@@ -63,6 +63,9 @@ def test_cli_bad_inputs(tmp_path, short_bag):
     r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(tmp_path / "m"), "--base-frame", "base_link",
                         "--odom-frame", "wheel_odom"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 1 and "no usable scan" in r.stderr and "wheel_odom" in r.stderr
+    r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(tmp_path / "m"), "--refine", "-1"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "refine_passes" in r.stderr, r.stderr
 
 
 def test_offline_map_quality_on_whole_route():

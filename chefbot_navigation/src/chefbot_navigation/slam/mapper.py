@@ -3,7 +3,8 @@
 Per scan (time in float s, odometry pose of the base in ``odom``):
 
 1. Predict the base pose in ``map`` from the last keyframe and the odometry
-   delta since then.
+   delta since then (its yaw scaled by the turn scale learned from matched
+   in-place turns: wheels slip in spins, :meth:`Slam._calibrate_turn`).
 2. Only when the robot moved ``linearUpdate`` m / turned ``angularUpdate`` rad
    since the last keyframe (or ``temporalUpdate`` s passed, if > 0) is the scan
    processed: matched (correlative + refinement, :mod:`scan_matcher`) against a
@@ -18,6 +19,10 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
    keyframe that moved is re-integrated (its old ray-cast contribution is
    subtracted, the new one added: the grid stores unclamped log-odds sums, so
    this is exact; clamping is applied when the map is read).
+
+5. After the run (``slam_offline``), :meth:`Slam.refine`: every keyframe
+   re-matched against the keyframes driven more than ``refine_min_travel`` m
+   away before or after it, edges added, optimised, re-integrated.
 
 The map frame is the odometry frame at the first scan (map->odom = identity
 until corrections accumulate), like gmapping.
@@ -60,6 +65,9 @@ class SlamConfig:
     srt: float = 0.05                    # m/rad, translation error per radian turned
     str: float = 0.1                     # rad/m, rotation error per metre driven
     stt: float = 0.3                     # rad/rad, rotation error per radian turned (wheel slip)
+    turn_calibration: bool = False       # learn the odometry's turn scale from matched spins (wheel slip)
+    turn_calibration_min: float = 3.0    # rad of matched in-place turning before the learned scale is used
+    turn_scale_limit: float = 0.15       # the learned scale stays within 1 +- this
     beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
     sigma_yaw_min: float = 0.02          # rad
@@ -82,6 +90,12 @@ class SlamConfig:
     edge_sigma_yaw: float = 0.01         # rad
     loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
     loop_sigma_yaw: float = 0.03         # rad
+    refine_passes: int = 0               # final global refinement passes (refine(); slam_offline --refine N)
+    refine_min_travel: float = 3.0       # m; keyframes driven this close (before/after) are not a keyframe's reference
+    refine_every: int = 2                # every n-th keyframe gets a refinement edge (the others follow by tracking)
+    refine_xy: float = 0.2               # m, refinement search half-window
+    refine_yaw: float = 0.1              # rad
+    refine_max_spread: float = 0.05      # m, an ambiguous refinement match is not used (as loop_max_spread)
     footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
     #                                      hides it; 0: off)
     l_occ: float = 0.9                   # log-odds added per hit
@@ -95,8 +109,9 @@ class SlamConfig:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
                     "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
-                    "loop_sigma_xy", "loop_sigma_yaw", "beams_per_dof", "max_xy", "sigma_xy_min", "sigma_yaw_min",
-                    "l_occ", "l_clamp")
+                    "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw",
+                    "refine_max_spread", "turn_calibration_min", "turn_scale_limit", "beams_per_dof", "max_xy",
+                    "sigma_xy_min", "sigma_yaw_min", "l_occ", "l_clamp")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -111,7 +126,9 @@ class SlamConfig:
         if not (self.xmax > self.xmin and self.ymax > self.ymin):
             raise ValueError(f"xmin must be < xmax and ymin < ymax, got "
                              f"x {self.xmin}..{self.xmax}, y {self.ymin}..{self.ymax}")
-        for name in ("local_keyframes", "loop_every", "min_match_beams", "recovery_min_beams"):
+        if not (isinstance(self.refine_passes, int) and self.refine_passes >= 0):
+            raise ValueError(f"refine_passes must be an integer >= 0, got {self.refine_passes!r}")
+        for name in ("local_keyframes", "loop_every", "min_match_beams", "recovery_min_beams", "refine_every"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
 
@@ -138,6 +155,8 @@ class SlamStats:
     loop_closures: int = 0
     optimisations: int = 0
     reintegrated: int = 0
+    turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
+    refine_edges: int = 0                # edges of the last refinement pass
     last_score: float = 0.0
     events: list[str] = field(default_factory=list)
 
@@ -158,6 +177,7 @@ class Slam:
         self._scans: list[tuple[float, int, Pose2D]] = []
         self._since_loop = 0
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
+        self._turn = [0.0, 0.0]       # in-place turning between matched keyframes: (odometry, matched) rad
 
     # -- queries ------------------------------------------------------------------------------
     def pose_of(self, kf: int, odom: Pose2D) -> Pose2D:
@@ -198,7 +218,7 @@ class Slam:
         moved = math.hypot(rel.x, rel.y)
         due = (moved >= c.linearUpdate or abs(rel.yaw) >= c.angularUpdate
                or (c.temporalUpdate > 0 and t - last.t >= c.temporalUpdate))
-        predicted = self.graph.poses[-1].compose(rel)
+        predicted = self.graph.poses[-1].compose(Pose2D(rel.x, rel.y, rel.yaw * self.stats.turn_scale))
         if not due:
             self._scans.append((t, len(self.keyframes) - 1, odom))
             return predicted
@@ -209,6 +229,8 @@ class Slam:
             sxy = c.sigma_xy_min + c.srr * dist + c.srt * turn
             syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
             pose, ok = self._track(scan, predicted, (sxy, syaw))
+            if ok and self._blind == (0.0, 0.0):
+                self._calibrate_turn(rel, moved, wrap_angle(pose.yaw - self.graph.poses[-1].yaw))
             self._blind = (0.0, 0.0) if ok else (dist, turn)
             blind = None if ok else (sxy, syaw)
         self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind)
@@ -219,6 +241,27 @@ class Slam:
                 self._since_loop = 0
                 self._close_loop()
         return self.graph.poses[-1]
+
+    def _calibrate_turn(self, rel: Pose2D, moved: float, matched_yaw: float) -> None:
+        """Learn the odometry's turn scale from an in-place turn between two matched keyframes.
+
+        Wheels slip in spins in a consistent way (in the sim the odometry counts ~2.8 % more turn
+        than the robot makes; a wrong wheel base does the same on a robot).  Uncorrected, a blind
+        spin (camera facing a chair) accumulates that error and the first match after it may lock
+        onto the wrong heading.  The scale is matched turn / odometry turn summed over turns of
+        > angularUpdate / 3 with < 2 cells of motion, used once ``turn_calibration_min`` rad have
+        been seen, clipped to 1 ± ``turn_scale_limit``, applied to every odometry yaw increment.
+        """
+        c = self.cfg
+        if not c.turn_calibration or moved > 2 * c.delta or abs(rel.yaw) < c.angularUpdate / 3:
+            return
+        if matched_yaw * rel.yaw <= 0:
+            return
+        self._turn[0] += abs(rel.yaw)
+        self._turn[1] += abs(matched_yaw)
+        if self._turn[0] >= c.turn_calibration_min:
+            self.stats.turn_scale = float(np.clip(self._turn[1] / self._turn[0], 1 - c.turn_scale_limit,
+                                                  1 + c.turn_scale_limit))
 
     def _track(self, scan: Scan, predicted: Pose2D, sigma: tuple[float, float]) -> tuple[Pose2D, bool]:
         """Matched pose (or the prediction) and whether the match was accepted.
@@ -349,3 +392,68 @@ class Slam:
             self._integrate(i, -1.0)
             self._integrate(i, +1.0)
             self.stats.reintegrated += 1
+
+    # -- final refinement ---------------------------------------------------------------------
+    def refine(self, passes: int | None = None) -> int:
+        """Global refinement after the run: ``passes`` (default ``refine_passes``) rounds of
+        re-matching keyframes against the map of the optimised graph, then optimise and re-integrate.
+
+        Tracking and loop closure only look back, so an error made once (a heading error after a
+        blind spin whose wheels slipped) is copied into every keyframe matched against the wrong
+        ones until a loop closure happens to reach them.  Here every ``refine_every``-th mapped
+        keyframe is matched (±``refine_xy`` m, ±``refine_yaw`` rad, no odometry prior) against the
+        obstacle points of all mapped keyframes more than ``refine_min_travel`` m of travel away,
+        before *or after* it (its own stretch shares its error and is left out).  A match as good
+        as a loop closure (``loop_min_score``, ``loop_max_spread``) adds an edge from the reference
+        keyframe nearest the matched pose; the previous pass's edges are replaced.  Returns the
+        number of edges of the last pass.
+        """
+        c = self.cfg
+        passes = c.refine_passes if passes is None else passes
+        n_edges = 0
+        for _ in range(passes):
+            self.graph.remove_edges("refine")
+            edges = self._refine_edges()
+            for anchor, j, z in edges:
+                self.graph.add_edge(anchor, j, z, (c.loop_sigma_xy, c.loop_sigma_xy, c.loop_sigma_yaw), loop=True,
+                                    tag="refine")
+            n_edges = len(edges)
+            if not edges:
+                break
+            self.graph.optimize(max_nfev=100)
+            self.stats.optimisations += 1
+            self._reintegrate()
+        self.stats.refine_edges = n_edges
+        return n_edges
+
+    def _refine_edges(self) -> list[tuple[int, int, Pose2D]]:
+        """(anchor, keyframe, relative pose) of every accepted refinement match (see :meth:`refine`)."""
+        c = self.cfg
+        mapped = [i for i, k in enumerate(self.keyframes) if k.integrated is not None and len(k.scan.hits)]
+        if len(mapped) < 2:
+            return []
+        pts = np.vstack([transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in mapped])
+        owner = np.concatenate([np.full(len(self.keyframes[i].scan.hits), i) for i in mapped])
+        travel = np.array([k.travel for k in self.keyframes])
+        xy = np.array([(p.x, p.y) for p in self.graph.poses])
+        out = []
+        margin = c.refine_xy + 1.0
+        for j in mapped[:: c.refine_every]:
+            hits = self.keyframes[j].scan.hits
+            if len(hits) < c.min_match_beams:
+                continue
+            pose = self.graph.poses[j]
+            own = transform_points(pose, hits)
+            lo, hi = own.min(axis=0) - margin, own.max(axis=0) + margin
+            far = (np.abs(travel[owner] - travel[j]) >= c.refine_min_travel) & (owner != j)
+            use = far & np.all((pts >= lo) & (pts <= hi), axis=1)
+            if use.sum() < c.min_match_beams:
+                continue
+            fld = LikelihoodField(pts[use], c.delta, c.sigma, margin=margin)
+            res = match(fld, hits, pose, SearchWindow(c.refine_xy, c.refine_yaw, c.match_yaw_step))
+            if res.score < c.loop_min_score or res.spread > c.refine_max_spread:
+                continue
+            refs = np.unique(owner[use])
+            anchor = int(refs[np.argmin(np.hypot(xy[refs, 0] - res.pose.x, xy[refs, 1] - res.pose.y))])
+            out.append((anchor, j, self.graph.poses[anchor].inverse().compose(res.pose)))
+        return out

@@ -27,6 +27,7 @@ class Edge:
     z: Pose2D
     sigma: tuple[float, float, float]
     loop: bool = False
+    tag: str = ""            # who added it ("refine": the final refinement pass, replaced per pass)
 
 
 class PoseGraph:
@@ -41,14 +42,21 @@ class PoseGraph:
         self.poses.append(pose)
         return len(self.poses) - 1
 
-    def add_edge(self, i: int, j: int, z: Pose2D, sigma: tuple[float, float, float], loop: bool = False) -> None:
-        """Add a relative-pose constraint between existing nodes i and j."""
+    def add_edge(self, i: int, j: int, z: Pose2D, sigma: tuple[float, float, float], loop: bool = False,
+                 tag: str = "") -> None:
+        """Add a relative-pose constraint between existing nodes i and j (``tag``: see :meth:`remove_edges`)."""
         n = len(self.poses)
         if not (0 <= i < n and 0 <= j < n) or i == j:
             raise ValueError(f"edge ({i}, {j}) does not join two different nodes of {n}")
         if min(sigma) <= 0:
             raise ValueError(f"edge sigmas must be > 0, got {sigma}")
-        self.edges.append(Edge(i, j, z, sigma, loop))
+        self.edges.append(Edge(i, j, z, sigma, loop, tag))
+
+    def remove_edges(self, tag: str) -> int:
+        """Drop every edge added with ``tag``; returns how many."""
+        n = len(self.edges)
+        self.edges = [e for e in self.edges if e.tag != tag]
+        return n - len(self.edges)
 
     def _arrays(self):
         e = self.edges
