@@ -272,10 +272,12 @@ def launch_map_file(roslaunch_cmd: list[str]) -> str:
     return next((n.args.split()[0] for n in config.nodes if n.type == "map_server" and n.args.strip()), "")
 
 
-def save_route_report(trajectory: dict, out_dir: Path) -> list[str]:
-    """Write ``trajectory.json`` and the plots (tools/plots.py) into ``out_dir`` (next to delivery.json);
-    one line per file written, or the reason the plots could not be drawn."""
+def save_route_report(trajectory: dict, out_dir: Path, legs: list[Leg], summary: dict) -> list[str]:
+    """Write ``delivery.json`` (``summary`` + the legs), ``trajectory.json`` and the plots (tools/plots.py)
+    into ``out_dir``; one line per file written, or the reason the plots could not be drawn."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "delivery.json").write_text(json.dumps({**summary, "legs": [leg.as_dict() for leg in legs]},
+                                                      indent=2) + "\n")
     path = out_dir / "trajectory.json"
     path.write_text(json.dumps(trajectory, separators=(",", ":")) + "\n")
     lines = [f"trajectory: {path} ({len(trajectory['samples']['t'])} samples)"]

@@ -34,7 +34,6 @@ carried into the world through it (test-oracle data).
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -225,10 +224,8 @@ def main() -> int:
         trajectory = client.trajectory(launch_map_file(launch_cmd))
         rospy.signal_shutdown("demo done")
     LOG_DIR.mkdir(parents=True, exist_ok=True)
-    (LOG_DIR / "delivery.json").write_text(json.dumps(
-        {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s,
-         "legs": [leg.as_dict() for leg in legs]}, indent=2) + "\n")
-    for line in save_route_report(trajectory, LOG_DIR):   # trajectory.json + the PNG plots
+    summary = {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s}
+    for line in save_route_report(trajectory, LOG_DIR, legs, summary):   # delivery.json, trajectory.json, plots
         say(line)
     say(f"back home: {'yes' if home and home.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
     say(f"delivered {delivered}/{len(names)} tables in {sim_s:.1f} s (sim time; {wall_s:.1f} s wall)")

@@ -180,10 +180,8 @@ def run() -> int:
     home_leg = next((leg for leg in legs if leg.name == "home"), None)
     report.update(deliver_sim_s=sim_s, legs=[leg.as_dict() for leg in legs], delivered=delivered, tables=len(names))
     (LOG_DIR / "slam_demo.json").write_text(json.dumps(report, indent=2) + "\n")
-    (LOG_DIR / "delivery.json").write_text(json.dumps(      # as make demo's, for tools/plots.py
-        {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s,
-         "legs": [leg.as_dict() for leg in legs]}, indent=2) + "\n")
-    for line in save_route_report(trajectory, LOG_DIR):
+    summary = {"real_time_factor": rtf, "sim_seconds": sim_s, "wall_seconds": wall_s}
+    for line in save_route_report(trajectory, LOG_DIR, legs, summary):
         say(line)
     say(f"back home: {'yes' if home_leg and home_leg.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
     say(f"SLAM workflow: explored {report['explore_sim_s']:.0f} s sim, map matched {100 * report['matched']:.1f} % / "

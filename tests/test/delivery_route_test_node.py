@@ -50,10 +50,11 @@ class DeliveryRouteTest(unittest.TestCase):
     def test_every_table_and_home(self) -> None:
         names = [n for n in self.tables if n.startswith("table")] + ["home"]
         self.assertGreaterEqual(len(names), 2, "tables file has no tables")
-        problems = []
+        problems, legs = [], []
         for name in names:
             pose = self.tables[name]
             leg = self.client.deliver(name, pose.x, pose.y, pose.yaw, LEG_WALL)
+            legs.append(leg)
             print(f"[figure] {self.drive}: {leg.line()}", flush=True)
             if leg.state != "SUCCEEDED":
                 problems.append(f"{name}: {leg.state} ({leg.text})")
@@ -69,7 +70,7 @@ class DeliveryRouteTest(unittest.TestCase):
         trajectory = self.client.trajectory(rospy.get_param("~map_file", ""))
         # the route's record and plots beside the run's node logs, to see where a failure happened
         out = Path(rospkg.get_log_dir()) / rospy.get_param("/run_id", "") / f"delivery_route_{self.drive}"
-        for line in save_route_report(trajectory, out):
+        for line in save_route_report(trajectory, out, legs, {"drive": self.drive}):
             print(f"[figure] {self.drive}: {line}", flush=True)
         track = trajectory["samples"]
         pairs = [(t, e) for t, e in zip(track["truth"], track["estimate"], strict=True)
