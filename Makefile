@@ -21,12 +21,13 @@ setup:
 test: setup
 	@$(WITH_ENV) python tools/run_tests.py
 
-# make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] [DRIVE=firmware|plugin] [SLAM=1]
+# make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] [DRIVE=firmware|plugin] [GUI=0|1] [SLAM=1]
 # SLAM=1: map the world first (SLAM + explore), save, localize on the saved map, deliver; MAP= is then the
 # world's raster, for judging the new map only
 # (or CHEFBOT_DEMO_* variables)
 demo: setup
 	@$(if $(WORLD),CHEFBOT_DEMO_WORLD='$(WORLD)') $(if $(MAP),CHEFBOT_DEMO_MAP='$(MAP)') $(if $(DRIVE),CHEFBOT_DEMO_DRIVE='$(DRIVE)') \
+	  $(if $(GUI),CHEFBOT_DEMO_GUI='$(GUI)') \
 	  $(if $(SLAM),CHEFBOT_DEMO_SLAM='$(SLAM)') \
 	  $(if $(TABLES_FILE),CHEFBOT_DEMO_TABLES_FILE='$(TABLES_FILE)') $(WITH_ENV) python tools/demo.py
 

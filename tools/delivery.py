@@ -31,7 +31,7 @@ import rospy
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Quaternion
-from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseActionResult, MoveBaseGoal
 from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
 from plots import PlotError, pose_at, write_plots
@@ -102,6 +102,10 @@ class DeliveryClient:
         self.tf_buffer = tf2_ros.Buffer()
         self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self._timer = rospy.Timer(rospy.Duration(SAMPLE_PERIOD_S), self._sample)
+        # goals other clients (the GUI) send, and their results: observe() (subscribed on first use)
+        self._goals: list[tuple[str, rospy.Time, Pose2D]] = []
+        self._results: dict[str, tuple[int, str]] = {}
+        self._observing = False
 
     def _estimate_stamped(self) -> tuple[float, Pose2D] | None:
         """The localization's latest map->base_footprint with its stamp (sim s), or None when tf has none."""
@@ -211,11 +215,16 @@ class DeliveryClient:
             return np.zeros((0, 2)), start_yaw
         return np.array([(p.pose.position.x, p.pose.position.y) for p in plan]).reshape(-1, 2), start_yaw
 
-    def deliver(self, name: str, x: float, y: float, yaw: float, timeout_wall: float) -> Leg:
-        """Drive to one pose; measure against ground truth."""
+    def _plan_leg(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float, float]:
+        """The leg's global plan from here (N, 2), its length (m) and time-optimal limit (s)."""
         pts, start_yaw = self.planned_path(x, y, yaw)
         planned = float(np.sum(np.hypot(*np.diff(pts, axis=0).T))) if len(pts) > 1 else float("nan")
         limit = profile_limit(pts, LIMITS, start_yaw, yaw) if len(pts) > 1 else float("nan")
+        return pts, planned, limit
+
+    def deliver(self, name: str, x: float, y: float, yaw: float, timeout_wall: float) -> Leg:
+        """Drive to one pose; measure against ground truth."""
+        pts, planned, limit = self._plan_leg(x, y, yaw)
         goal = MoveBaseGoal()
         goal.target_pose.header.frame_id = "map"
         goal.target_pose.header.stamp = rospy.Time.now()
@@ -238,6 +247,56 @@ class DeliveryClient:
         else:
             state = GoalStatus.to_string(self.client.get_state())
             text = self.client.get_goal_status_text()
+        return self._leg(name, (x, y, yaw), pts, planned, limit, t0, state, text, bumps0)
+
+    def _on_goal(self, msg: MoveBaseActionGoal) -> None:
+        p = msg.goal.target_pose.pose
+        yaw = yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+        with self._lock:
+            self._goals.append((msg.goal_id.id, rospy.Time.now(), Pose2D(p.position.x, p.position.y, yaw)))
+
+    def _on_result(self, msg: MoveBaseActionResult) -> None:
+        with self._lock:
+            self._results[msg.status.goal_id.id] = (msg.status.status, msg.status.text)
+
+    def observe(self, name: str, x: float, y: float, yaw: float, timeout_wall: float) -> Leg:
+        """Measure one leg that another client drives (the GUI): wait for its goal to (x, y, yaw) on
+        ``move_base/goal``, then for that goal's result; the same figures as :meth:`deliver`."""
+        if not self._observing:
+            self._observing = True
+            rospy.Subscriber("move_base/goal", MoveBaseActionGoal, self._on_goal, queue_size=10)
+            rospy.Subscriber("move_base/result", MoveBaseActionResult, self._on_result, queue_size=10)
+        deadline = time.monotonic() + timeout_wall
+        goal = None
+        while goal is None and time.monotonic() < deadline and not rospy.is_shutdown():
+            with self._lock:
+                for k, (gid, t_sent, pose) in enumerate(self._goals):
+                    dyaw = abs(math.remainder(pose.yaw - yaw, 2 * math.pi))
+                    if math.hypot(pose.x - x, pose.y - y) < 0.01 and dyaw < 0.01:
+                        goal = (gid, t_sent)
+                        del self._goals[:k + 1]
+                        break
+                bumps0 = self.bumps
+            time.sleep(0.05)
+        if goal is None:
+            nan = float("nan")
+            return Leg(name=name, ok=False, state="TIMEOUT", text=f"no goal to {name} within {timeout_wall:.0f} s "
+                       "wall time", planned_m=nan, seconds=nan, limit_s=nan, xy_error=nan, yaw_error=nan, bumps=0)
+        gid, t0 = goal
+        pts, planned, limit = self._plan_leg(x, y, yaw)
+        result = None
+        while result is None and time.monotonic() < deadline and not rospy.is_shutdown():
+            with self._lock:
+                result = self._results.pop(gid, None)
+            time.sleep(0.05)
+        state, text = ((GoalStatus.to_string(result[0]), result[1]) if result is not None else
+                       ("TIMEOUT", f"no result within {timeout_wall:.0f} s wall time"))
+        return self._leg(name, (x, y, yaw), pts, planned, limit, t0, state, text, bumps0)
+
+    def _leg(self, name: str, goal_pose: tuple[float, float, float], pts: np.ndarray, planned: float, limit: float,
+             t0: rospy.Time, state: str, text: str, bumps0: int) -> Leg:
+        """The finished leg measured against ground truth (and recorded for the trajectory)."""
+        x, y, yaw = goal_pose
         t1 = rospy.Time.now()
         seconds = (t1 - t0).to_sec()
         with self._lock:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""`make demo`: the simulated hotel delivery, headless.
+"""`make demo`: the simulated hotel delivery (headless without a display).
 
 Starts a private ROS master and `chefbot_sim navigation_demo.launch` (pybullet
 hotel + map server + amcl + move_base; by default firmware-in-the-loop: our
@@ -7,7 +7,12 @@ firmware core on a pty driven by chefbot_bringup's unmodified robot_standalone.l
 diff_tf taking the heading from the IMU), prints the robot's TF tree,
 then a real move_base action client delivers to all nine tables of the shared
 tables YAML and returns home, printing one line per leg (path length, time,
-final ground-truth error) and a final ``delivered N/9 tables in T s``.
+final ground-truth error) and a final ``delivered N/9 tables in T s``.  With a
+display (or CHEFBOT_DEMO_GUI=1, `make demo GUI=1`) the restaurant's delivery GUI
+(chefbot_gui) is that client: it gets every table queued and drives the route
+(2 s at each table, then home), pybullet's window opens too, and the demo only
+watches move_base's goals and results to measure the same legs; GUI=0 forces
+the scripted client.
 
 A table counts as delivered when move_base reports SUCCEEDED and the
 simulator's ground truth is within 0.05 m / 0.05 rad of the table pose.
@@ -34,6 +39,7 @@ carried into the world through it (test-oracle data).
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -45,9 +51,21 @@ from procs import ProcessGroup, free_port
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
 TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+# the default site: the hotel on the map our SLAM made exploring it (make demo SLAM=1), with the tables
+# carried onto it by align_tables; MAP=/TABLES_FILE=/WORLD= choose another
+DEFAULT_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map_explored.yaml"
+DEFAULT_TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables_explored.yaml"
 XY_TOL, YAW_TOL = 0.05, 0.05          # m, rad: the acceptance tolerance against ground truth
 STARTUP_TIMEOUT_S = 180.0             # wall time for the sim + navigation to come up
 LEG_TIMEOUT_S = 240.0                 # wall time per leg before giving up
+GUI_WAIT_S = 2.0                      # GUI mode: s at each table before the GUI sends the next goal
+
+
+def gui_mode() -> bool:
+    """CHEFBOT_DEMO_GUI (`make demo GUI=0|1`): 1 = the delivery GUI drives the route, 0 = the scripted
+    client does; unset = the GUI when there is a display."""
+    value = os.environ.get("CHEFBOT_DEMO_GUI", "")
+    return bool(os.environ.get("DISPLAY")) if value == "" else value not in ("0", "false")
 
 
 def say(msg: str) -> None:
@@ -126,7 +144,11 @@ def main() -> int:
     except DemoInputError as exc:
         say(f"ERROR: {exc}")
         return 2
-    tables_file = Path(site["tables_file"]).resolve() if site["tables_file"] else TABLES_FILE
+    default_site = not site["world"] and not site["map"]
+    if default_site:
+        site["map"] = str(DEFAULT_MAP)
+    tables_file = (Path(site["tables_file"]).resolve() if site["tables_file"] else
+                   DEFAULT_TABLES if default_site else TABLES_FILE)
     port = free_port()
     uri = f"http://127.0.0.1:{port}"
     env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(LOG_DIR / "ros_home"))
@@ -145,6 +167,9 @@ def main() -> int:
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
     launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "navigation_demo.launch", f"real_time_factor:={rtf}",
                   f"drive:={drive}", f"use_imu:={str(use_imu).lower()}"]
+    use_gui = gui_mode()
+    if use_gui and os.environ.get("DISPLAY"):
+        launch_cmd.append("gui:=true")   # pybullet's window too
     from chefbot_common.tables import TablesError, load_map_in_world, load_tables
     try:
         tables = load_tables(tables_file)
@@ -203,20 +228,35 @@ def main() -> int:
         say(f"TF tree ({len(parents) + 1} frames):")
         print_tree(parents)
 
-        say(f"delivering to {len(names)} tables, then home ({tables_file})")
         legs = []
-        t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
-        for name in [*names, "home"]:
-            if launch.poll() is not None:
-                say(f"ERROR: the simulation stopped (roslaunch exit {launch.poll()}); see {log}")
-                break
-            pose = tables[name]
-            leg = client.deliver(name, pose.x, pose.y, pose.yaw, LEG_TIMEOUT_S)
-            within = leg.xy_error <= XY_TOL and leg.yaw_error <= YAW_TOL
-            leg.ok = leg.ok and within
-            legs.append(leg)
-            off = "" if within or leg.state != "SUCCEEDED" else f" -- outside {XY_TOL} m / {YAW_TOL} rad"
-            say(("  " if leg.ok else "  NOT DELIVERED ") + leg.line() + off)
+        # GUI mode: the restaurant's GUI (chefbot_gui) gets every table queued and drives the route itself
+        # (GUI_WAIT_S at each table, then home); the demo only watches move_base's goals and results
+        gui_cmd = ["roslaunch", "chefbot_gui", "robot_gui.launch", f"tables_file:={tables_file}",
+                   f"queue:={','.join(names)}", f"wait_time:={GUI_WAIT_S}"]
+        say(f"delivering to {len(names)} tables, then home ({tables_file})"
+            + (f"; the delivery GUI drives the route (log: {(LOG_DIR / 'gui.log').relative_to(ROOT)})"
+               if use_gui else ""))
+        with (ProcessGroup(gui_cmd, env=env, log=LOG_DIR / "gui.log") if use_gui
+              else contextlib.nullcontext()) as gui:
+            t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
+            for name in [*names, "home"]:
+                if launch.poll() is not None:
+                    say(f"ERROR: the simulation stopped (roslaunch exit {launch.poll()}); see {log}")
+                    break
+                if gui is not None and gui.poll() is not None:
+                    say(f"ERROR: the GUI exited (roslaunch exit {gui.poll()}); see {LOG_DIR / 'gui.log'}")
+                    break
+                pose = tables[name]
+                leg = (client.observe if gui is not None else client.deliver)(name, pose.x, pose.y, pose.yaw,
+                                                                              LEG_TIMEOUT_S)
+                within = leg.xy_error <= XY_TOL and leg.yaw_error <= YAW_TOL
+                leg.ok = leg.ok and within
+                legs.append(leg)
+                off = "" if within or leg.state != "SUCCEEDED" else f" -- outside {XY_TOL} m / {YAW_TOL} rad"
+                say(("  " if leg.ok else "  NOT DELIVERED ") + leg.line() + off)
+                if gui is not None and leg.state != "SUCCEEDED":
+                    say("the GUI keeps a failed table first in its queue (Go retries it): the route ends here")
+                    break
         sim_s = (rospy.Time.now() - t0_sim).to_sec()
         wall_s = time.monotonic() - t0_wall
         delivered = sum(1 for leg in legs if leg.ok and leg.name != "home")
