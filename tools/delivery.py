@@ -274,9 +274,9 @@ class DeliveryClient:
                     dyaw = abs(math.remainder(pose.yaw - yaw, 2 * math.pi))
                     if math.hypot(pose.x - x, pose.y - y) < 0.01 and dyaw < 0.01:
                         goal = (gid, t_sent)
+                        bumps0 = self.bumps
                         del self._goals[:k + 1]
                         break
-                bumps0 = self.bumps
             time.sleep(0.05)
         if goal is None:
             nan = float("nan")
