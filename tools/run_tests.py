@@ -2,11 +2,14 @@
 """Run every test of the workspace and print one closing line of totals.
 
 Runners, in order:
-  1. pytest over every ``*/test/unit`` directory and ``tests/unit`` (no master);
-  2. ``make -C firmware test`` and a bounded fuzz run, when the firmware has them;
-  3. every rostest file (``*/test/*.test`` and ``tests/*.test``), one at a time,
-     each with its own master on a free port (rostest's default), in its own
-     process group that is killed afterwards.
+  1. pytest over every ``*/test/unit`` directory and ``tests/unit`` (no master),
+     and ``make -C firmware test`` with a bounded fuzz run when the firmware has
+     them: these have no timing in them, so they run side by side, as many at
+     once as the machine has cores (CHEFBOT_TEST_JOBS overrides);
+  2. every rostest file (``*/test/*.test`` and ``tests/*.test``; not
+     ``test/manual/``), one at a time (they run in sim time against the wall
+     clock: nothing else runs beside them), each with its own master on a free
+     port (rostest's default), in its own process group that is killed afterwards.
 
 Every child gets the environment variable CHEFBOT_TEST_RUN=<token>; at the end
 any process still carrying it is reported as a leak, killed, and counted as a
@@ -25,9 +28,11 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import uuid
 import xml.etree.ElementTree as ET
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,8 +62,17 @@ class Totals:
         self.skips += other.skips
 
 
+_PRINT = threading.Lock()   # the unit stage's runners print from several threads
+
+
 def log(msg: str) -> None:
-    print(f"[test] {msg}", flush=True)
+    with _PRINT:
+        print(f"[test] {msg}", flush=True)
+
+
+def show(text: str) -> None:
+    with _PRINT:
+        print(text, flush=True)
 
 
 def junit_totals(path: Path, label: str) -> Totals:
@@ -123,6 +137,20 @@ def tail(path: Path, n: int = 30) -> str:
     return "\n".join("    " + line for line in lines[-n:])
 
 
+def figures(out_dir: Path) -> str:
+    """The ``[figure]`` lines the test nodes printed (their measurements; rostest keeps a node's
+    stdout in its rosunit result), so a run's record keeps them."""
+    lines = []
+    for xml in sorted(out_dir.glob("**/rosunit-*.xml")):
+        try:
+            root = ET.parse(xml).getroot()
+        except (ET.ParseError, OSError):
+            continue
+        for out in root.iter("system-out"):
+            lines += [ln.strip() for ln in (out.text or "").splitlines() if ln.lstrip().startswith("[figure]")]
+    return "\n".join("    " + line for line in lines)
+
+
 # ----------------------------------------------------------------- discovery
 def package_dirs() -> list[Path]:
     return sorted(p.parent for p in ROOT.glob("*/package.xml"))
@@ -143,45 +171,63 @@ def rostest_files() -> list[tuple[str, Path]]:
 
 
 # ----------------------------------------------------------------- runners
-def run_pytest(env: dict, pattern: str | None) -> Totals:
-    """One pytest run per unit-test directory.
+def unit_jobs() -> int:
+    return max(1, int(os.environ.get("CHEFBOT_TEST_JOBS", "0")) or os.cpu_count() or 1)
+
+
+def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
+    """One pytest run in one unit-test directory.
 
     Separate runs, each with the directory as rootdir and cwd: with one run over
     several directories the rootdir becomes the repository top, and pytest's
     importlib mode then names a test module ``chefbot_bringup.test.unit.test_x``,
     registering a dummy ``chefbot_bringup`` that shadows the real package.
     """
+    rel = d.relative_to(ROOT)
+    xml = RESULTS / "pytest" / (str(rel).replace("/", "-") + ".xml")
+    xml.parent.mkdir(parents=True, exist_ok=True)
+    if xml.exists():
+        xml.unlink()
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
+           "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
+    if pattern:
+        cmd += ["-k", pattern]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, cwd=d, env=dict(env, QT_QPA_PLATFORM="offscreen"), start_new_session=True,
+                          capture_output=True, text=True)
+    if proc.returncode == 5:  # pytest: no tests collected (e.g. -k selected none here)
+        return Totals()
+    if not xml.exists():
+        t = Totals(failed=1, failures=[f"pytest {rel} crashed (exit {proc.returncode})"])
+    else:
+        t = junit_totals(xml, f"pytest {rel}")
+    lines = [f"[test] pytest {rel}: {t.passed} passed, {t.failed} failed, {t.skipped} skipped "
+             f"({time.monotonic() - t0:.1f} s)"]
+    lines += [f"[test]   skipped {skip}" for skip in t.skips]
+    if t.failed or proc.returncode not in (0, 1):
+        lines += [proc.stdout[-6000:], proc.stderr[-3000:]]
+    show("\n".join(lines))
+    return t
+
+
+def run_unit_stage(env: dict, pattern: str | None, unit: bool, firmware: bool) -> Totals:
+    """The pytest directories and the firmware's tests, side by side (none of them is timed)."""
     total = Totals()
-    dirs = unit_dirs()
-    if not dirs:
+    dirs = unit_dirs() if unit else []
+    if unit and not dirs:
         log("pytest: no unit test directories")
-        return total
-    env = dict(env, QT_QPA_PLATFORM="offscreen")
-    for d in dirs:
-        rel = d.relative_to(ROOT)
-        xml = RESULTS / "pytest" / (str(rel).replace("/", "-") + ".xml")
-        xml.parent.mkdir(parents=True, exist_ok=True)
-        if xml.exists():
-            xml.unlink()
-        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
-               "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
-        if pattern:
-            cmd += ["-k", pattern]
-        t0 = time.monotonic()
-        proc = subprocess.run(cmd, cwd=d, env=env, start_new_session=True, capture_output=True, text=True)
-        if proc.returncode == 5:  # pytest: no tests collected (e.g. -k selected none here)
-            continue
-        if not xml.exists():
-            t = Totals(failed=1, failures=[f"pytest {rel} crashed (exit {proc.returncode})"])
-        else:
-            t = junit_totals(xml, f"pytest {rel}")
-        log(f"pytest {rel}: {t.passed} passed, {t.failed} failed, {t.skipped} skipped "
-            f"({time.monotonic() - t0:.1f} s)")
-        for skip in t.skips:
-            log(f"  skipped {skip}")
-        if t.failed or proc.returncode not in (0, 1):
-            print(proc.stdout[-6000:], proc.stderr[-3000:], sep="\n", flush=True)
-        total.add(t)
+    # the longest first (the firmware's fuzz, then the directories with the most test code), so
+    # the pool does not end on one long job
+    dirs.sort(key=lambda d: -sum(f.stat().st_size for f in d.glob("test_*.py")))
+    jobs = unit_jobs()
+    if unit or firmware:
+        log(f"unit stage: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'}"
+            f"{' + firmware' if firmware else ''}, {jobs} at a time")
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = ([pool.submit(run_firmware, env)] if firmware else [])
+        futures += [pool.submit(pytest_dir, env, d, pattern) for d in dirs]
+        for fut in futures:
+            total.add(fut.result())
     return total
 
 
@@ -215,7 +261,7 @@ def run_firmware(env: dict) -> Totals:
         t.failed += 1
         t.failures.append(f"firmware: make test exit {rc}{' (timeout)' if to else ''}")
     if rc != 0 or t.failed:
-        print(tail(logf), flush=True)
+        show(tail(logf))
     log(f"firmware: {t.passed} passed, {t.failed} failed")
 
     if os.environ.get("CHEFBOT_SKIP_FUZZ") == "1":
@@ -231,7 +277,7 @@ def run_firmware(env: dict) -> Totals:
     else:
         t.failed += 1
         t.failures.append(f"firmware fuzz exit {rc}{' (timeout)' if to else ''}: see {logf}")
-        print(tail(logf), flush=True)
+        show(tail(logf))
     return t
 
 
@@ -271,6 +317,8 @@ def run_rostests(env: dict, pattern: str | None) -> Totals:
             t.failed += 1
             t.failures.append(f"{name}: no test result")
         log(f"rostest {rel}: {t.passed} passed, {t.failed} failed ({time.monotonic() - t0:.1f} s)")
+        if measured := figures(out_dir):
+            print(measured, flush=True)
         if t.failed:
             print(tail(logf), flush=True)
         total.add(t)
@@ -310,10 +358,7 @@ def main() -> int:
 
     t0 = time.monotonic()
     total = Totals()
-    if "unit" in only:
-        total.add(run_pytest(env, args.pattern))
-    if "firmware" in only and not args.pattern:
-        total.add(run_firmware(env))
+    total.add(run_unit_stage(env, args.pattern, "unit" in only, "firmware" in only and not args.pattern))
     if "rostest" in only:
         total.add(run_rostests(env, args.pattern))
 

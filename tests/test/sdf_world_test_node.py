@@ -10,6 +10,7 @@ are only generous timeouts for a loaded machine.
 """
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -20,6 +21,7 @@ import actionlib
 import numpy as np
 import rospy
 import rostest
+import tf2_ros
 from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import OccupancyGrid
 
@@ -46,6 +48,8 @@ class SdfWorldTest(unittest.TestCase):
         cls.world = rospy.get_param("~world")
         cls.tables = load_tables(rospy.get_param("~tables"))
         cls.truth = Truth()
+        cls.tf = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf)
         cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
         wait_for(lambda: bool(cls.truth.hist), 120.0, "ground truth")
@@ -68,13 +72,23 @@ class SdfWorldTest(unittest.TestCase):
         print(f"[figure] map: {info.width} x {info.height} cells, {occupied} occupied", flush=True)
         self.assertGreater(occupied, 1000, "walls and tables missing from the map")
 
+    def estimate_error(self, x: float, y: float) -> str:
+        """How far the localization estimate (tf map -> base_footprint) is from the truth: says whether a
+        miss is localization's or move_base's."""
+        try:
+            tr = self.tf.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(2.0)).transform
+        except tf2_ros.TransformException as exc:
+            return f"no estimate ({exc})"
+        return f"estimate off by {math.hypot(tr.translation.x - x, tr.translation.y - y):.3f} m"
+
     def test_b_three_tables_without_contact(self) -> None:
         for name in ("table_1", "table_2", "table_3"):
             took, err_xy, err_yaw = reach(self, self.client, self.truth, name, self.tables[name],
                                           wall_timeout=WALL_TIMEOUT)
             _, x, y, _ = self.truth.latest()
             print(f"[figure] {name}: {took:.1f} s sim, error {err_xy:.3f} m (dx {x - self.tables[name].x:+.3f}, "
-                  f"dy {y - self.tables[name].y:+.3f}) / {err_yaw:.3f} rad, contacts {self.truth.contacts}", flush=True)
+                  f"dy {y - self.tables[name].y:+.3f}) / {err_yaw:.3f} rad, contacts {self.truth.contacts}, "
+                  f"{self.estimate_error(x, y)}", flush=True)
             self.assertLessEqual(took, SIM_LIMIT, f"{name}: {took:.1f} s of sim time")
             self.assertLessEqual(err_xy, XY_TOL, f"{name}: final position error {err_xy:.3f} m")
             self.assertLessEqual(err_yaw, YAW_TOL, f"{name}: final yaw error {err_yaw:.3f} rad")
