@@ -52,7 +52,7 @@ class MoveBaseTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
         occ = load_map(rospy.get_param("~map_file"))
-        cls.robot = KinematicRobot(occ, START)
+        cls.robot = KinematicRobot(occ, START, rtf=rospy.get_param("~real_time_factor", 3.0))
         cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         assert cls.client.wait_for_server(rospy.Duration(60.0)), "no move_base action server"
         cls.plans: list[Path] = []
