@@ -31,6 +31,8 @@ import numpy as np
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
 
+XY_RELEASE = 2.0   # x xy_goal_tolerance: a reached position is given up only this far from the goal
+
 
 @dataclass(frozen=True)
 class ControllerParams:
@@ -283,14 +285,19 @@ class RegulatedPurePursuit:
             return self._emit(0.0, 0.0, t, dt, "arrived", "no path")
         gx, gy = self.path[-1]
         dist_goal = math.hypot(gx - pose.x, gy - pose.y)
-        # latch xy like move_base's latch_xy_goal_tolerance, but release it if we drift off
+        # latch xy like move_base's latch_xy_goal_tolerance, but release it if we drift off -- by
+        # XY_RELEASE x the tolerance: a turn on the spot does not move the robot, but the estimate
+        # it is judged on wanders a few cm while the scene turns (amcl on a narrow camera); released
+        # at the tolerance itself, the robot at home turned to drive 1 cm back, turned again, and
+        # spun for 15 s until localization was lost (make demo at 1.5x, 2026-11-23)
+        release = (XY_RELEASE if self.xy_reached else 1.0) * p.xy_goal_tolerance
         if dist_goal <= 0.5 * p.xy_goal_tolerance:
             self.xy_reached = True
         elif dist_goal <= p.xy_goal_tolerance and self._goal_sideways(pose):
             # inside the tolerance with the goal beside the robot: creeping closer would need a
             # turn on the spot and a wiggle, so accept the position as it is
             self.xy_reached = True
-        elif dist_goal > p.xy_goal_tolerance:
+        elif dist_goal > release:
             self.xy_reached = False
         if self.xy_reached:
             if self.goal_yaw is None:
