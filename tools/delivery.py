@@ -46,6 +46,7 @@ MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
 # max_vel_theta, acc_lim_x, acc_lim_theta)
 LIMITS = MotionLimits(v_max=MAX_SPEED, w_max=2.5, acc=0.8, dec=0.8, alpha=3.0)
 SAMPLE_PERIOD_S = 0.2     # sim s between trajectory samples (5 Hz)
+RESULT_GRACE = 2.0         # s wall: a terminal goal status whose result message does not follow
 TRUTH_HISTORY = 100       # ground-truth messages kept to interpolate at the estimate's stamp (2 s at 50 Hz)
 
 
@@ -236,11 +237,20 @@ class DeliveryClient:
         self.client.send_goal(goal)
         # Poll the goal state against a wall-clock deadline: wait_for_result's timeout counts
         # ROS time, which would not run out if the simulation (and its /clock) stalled.
+        # Finished means the *result* arrived (simple state DONE), not only a terminal status: the
+        # status array can come first, and a next goal sent then made the late result a transition
+        # on a goal handle the client no longer tracked (actionlib's "[ERROR] Got a transition
+        # callback on a goal handle that we're not tracking" in the demo's output). A result that
+        # never follows its terminal status is waited for RESULT_GRACE s, then the status counts.
         deadline = time.monotonic() + timeout_wall
-        finished = False
+        finished, terminal_since = False, None
         while not finished and time.monotonic() < deadline and not rospy.is_shutdown():
             time.sleep(0.05)
-            finished = self.client.get_state() not in (GoalStatus.PENDING, GoalStatus.ACTIVE)
+            if self.client.simple_state == actionlib.SimpleGoalState.DONE:
+                finished = True
+            elif self.client.get_state() not in (GoalStatus.PENDING, GoalStatus.ACTIVE):
+                terminal_since = terminal_since or time.monotonic()
+                finished = time.monotonic() - terminal_since > RESULT_GRACE
         if not finished:
             self.client.cancel_goal()
             state, text = "TIMEOUT", f"no result within {timeout_wall:.0f} s wall time"

@@ -15,6 +15,7 @@ a contact) still fails.  Durations are sim time; wall-clock bounds are generous 
 """
 from __future__ import annotations
 
+import logging
 import math
 import sys
 import unittest
@@ -39,9 +40,22 @@ RMS_XY, RMS_YAW, MAX_XY = 0.06, 0.06, 0.20   # localization over the route (issu
 LEG_WALL = 400.0                    # s wall, per leg: a generous timeout only
 
 
+class _Errors(logging.Handler):
+    """Keeps the ERROR records this node logs (rospy's and actionlib's: the 'rosout' logger)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
 class DeliveryRouteTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
+        cls.errors = _Errors()
+        logging.getLogger("rosout").addHandler(cls.errors)
         cls.tables = load_tables(rospy.get_param("~tables"))
         cls.drive = rospy.get_param("~drive", "?")
         cls.client = DeliveryClient()
@@ -85,6 +99,9 @@ class DeliveryRouteTest(unittest.TestCase):
         if rms_xy > RMS_XY or rms_yaw > RMS_YAW or dxy.max() > MAX_XY:
             problems.append(f"localization RMS {rms_xy:.3f} m / {rms_yaw:.3f} rad, max {dxy.max():.3f} m "
                             f"(bounds {RMS_XY} / {RMS_YAW}, {MAX_XY})")
+        # the client's own errors: actionlib's "transition callback on a goal handle that we're not
+        # tracking" came from sending the next goal before the last one's result had arrived
+        problems += [f"client error: {m}" for m in self.errors.messages]
         self.assertFalse(problems, "; ".join(problems))
 
 
