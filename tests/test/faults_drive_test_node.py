@@ -29,7 +29,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
 from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import Odometry
-from sim_navigation_test_node import Truth, goal_for
+from sim_navigation_test_node import Truth, estimate_error, goal_for
 from std_srvs.srv import Empty
 
 from chefbot_common.geometry import wrap_angle, yaw_from_quaternion
@@ -139,15 +139,7 @@ class FaultsDriveTest(unittest.TestCase):
         target = self.tables[name]
         _, x, y, yaw = self.truth.latest()
         err_xy, err_yaw = math.hypot(x - target.x, y - target.y), abs(wrap_angle(yaw - target.yaw))
-        # the pose move_base steers by (amcl's map->odom + odometry; the hotel map's frame is the world's):
-        # its error at rest tells a localization miss from a controller that stopped short
-        try:
-            tr = self.tf.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(2.0)).transform
-            q = tr.rotation
-            loc = (f"estimate off by {math.hypot(tr.translation.x - x, tr.translation.y - y):.3f} m / "
-                   f"{abs(wrap_angle(yaw_from_quaternion(q.x, q.y, q.z, q.w) - yaw)):.3f} rad")
-        except tf2_ros.TransformException as exc:
-            loc = f"no map -> base_footprint ({exc})"
+        loc = estimate_error(self.tf, x, y, yaw)
         print(f"[figure] {self.id().split('.')[-1]}: {name} reached, error {err_xy:.3f} m / {err_yaw:.3f} rad, "
               f"{loc}", flush=True)
         self.assertLessEqual(err_xy, xy_tol, f"{name}: final position error {err_xy:.3f} m")

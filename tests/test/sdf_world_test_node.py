@@ -10,7 +10,6 @@ are only generous timeouts for a loaded machine.
 """
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -26,7 +25,7 @@ from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import OccupancyGrid
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sim_navigation_test_node import Truth, reach
+from sim_navigation_test_node import Truth, estimate_error, reach
 
 from chefbot_common.map_io import load_map
 from chefbot_common.rostest_helpers import wait_for
@@ -72,23 +71,14 @@ class SdfWorldTest(unittest.TestCase):
         print(f"[figure] map: {info.width} x {info.height} cells, {occupied} occupied", flush=True)
         self.assertGreater(occupied, 1000, "walls and tables missing from the map")
 
-    def estimate_error(self, x: float, y: float) -> str:
-        """How far the localization estimate (tf map -> base_footprint) is from the truth: says whether a
-        miss is localization's or move_base's."""
-        try:
-            tr = self.tf.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(2.0)).transform
-        except tf2_ros.TransformException as exc:
-            return f"no estimate ({exc})"
-        return f"estimate off by {math.hypot(tr.translation.x - x, tr.translation.y - y):.3f} m"
-
     def test_b_three_tables_without_contact(self) -> None:
         for name in ("table_1", "table_2", "table_3"):
             took, err_xy, err_yaw = reach(self, self.client, self.truth, name, self.tables[name],
                                           wall_timeout=WALL_TIMEOUT)
-            _, x, y, _ = self.truth.latest()
+            _, x, y, yaw = self.truth.latest()
             print(f"[figure] {name}: {took:.1f} s sim, error {err_xy:.3f} m (dx {x - self.tables[name].x:+.3f}, "
                   f"dy {y - self.tables[name].y:+.3f}) / {err_yaw:.3f} rad, contacts {self.truth.contacts}, "
-                  f"{self.estimate_error(x, y)}", flush=True)
+                  f"{estimate_error(self.tf, x, y, yaw)}", flush=True)
             self.assertLessEqual(took, SIM_LIMIT, f"{name}: {took:.1f} s of sim time")
             self.assertLessEqual(err_xy, XY_TOL, f"{name}: final position error {err_xy:.3f} m")
             self.assertLessEqual(err_yaw, YAW_TOL, f"{name}: final yaw error {err_yaw:.3f} rad")

@@ -14,6 +14,7 @@ import actionlib
 import numpy as np
 import rospy
 import rostest
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Quaternion
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
@@ -99,6 +100,18 @@ def connect_sim_client(cls: type, timeout: float = 120.0) -> None:
     cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
     assert cls.client.wait_for_server(rospy.Duration(timeout)), "no move_base"
     wait_for(lambda: bool(cls.truth.hist), timeout, "ground truth", stop=rospy.is_shutdown)
+
+
+def estimate_error(tf_buffer, x: float, y: float, yaw: float) -> str:
+    """How far the pose move_base steers by (tf map -> base_footprint: localization + odometry) is from
+    the ground truth (x, y, yaw) at rest: tells a localization miss from a controller that stopped short."""
+    try:
+        tr = tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(2.0)).transform
+    except tf2_ros.TransformException as exc:
+        return f"no map -> base_footprint ({exc})"
+    q = tr.rotation
+    return (f"estimate off by {math.hypot(tr.translation.x - x, tr.translation.y - y):.3f} m / "
+            f"{abs(wrap_angle(yaw_from_quaternion(q.x, q.y, q.z, q.w) - yaw)):.3f} rad")
 
 
 def reach(test: unittest.TestCase, client: actionlib.SimpleActionClient, truth: Truth, name: str, target,
