@@ -9,9 +9,10 @@ Starts ``roslaunch chefbot_sim chefbot_hotel_world.launch <args>`` with its own
 master on a free port (own session, so everything is stopped at the end),
 subscribes to /clock (which also makes the node publish it) and prints one
 JSON line: sim seconds per wall second over the window, and, with
-``--drive-forward``, the ground-truth and wheel-odometry distances while
-cmd_vel 0.2 m/s is published (to see whether the real-time driver chain keeps
-up).  Used by bench_sim.py in a child process (rospy cannot re-init).
+``--drive-forward``, the ground-truth and wheel-odometry distances of a
+10 sim-second drive at cmd_vel 0.2 m/s (sent at 10 Hz of sim time), taken with
+the robot at rest again (to see whether the real-time driver chain keeps up).
+Used by bench_sim.py in a child process (rospy cannot re-init).
 """
 from __future__ import annotations
 
@@ -51,7 +52,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=20.0, help="measuring window, wall s")
     ap.add_argument("--warmup", type=float, default=30.0, help="longest wait for the sim to start, wall s")
-    ap.add_argument("--drive-forward", action="store_true", help="publish cmd_vel 0.2 m/s while measuring")
+    ap.add_argument("--drive-forward", action="store_true",
+                    help="publish cmd_vel 0.2 m/s for --drive-sim-seconds, then 0, and compare distances")
+    ap.add_argument("--drive-sim-seconds", type=float, default=10.0,
+                    help="sim seconds of driving forward (2 m at 0.2 m/s: clear of the hotel's walls)")
     ap.add_argument("--launch", nargs=2, default=("chefbot_sim", "chefbot_hotel_world.launch"),
                     metavar=("PKG", "FILE"), help="launch file to measure (default: the hotel world)")
     ap.add_argument("--subscribe", nargs="*", default=[], metavar="TOPIC",
@@ -102,26 +106,36 @@ def main() -> int:
             time.sleep(0.1)
         time.sleep(2.0)  # settle
 
-        def tick() -> None:
+        def tick(v: float) -> None:
             if args.drive_forward:
                 t = Twist()
-                t.linear.x = 0.2
+                t.linear.x = v
                 cmd.publish(t)
-        tick()
         with lock:
             sim0, gt0, od0 = last["clock"], last["gt"], last["odom"]
         wall0 = time.monotonic()
+        sent, at_rest = -1.0, None
         while time.monotonic() - wall0 < args.seconds:
-            tick()
-            time.sleep(0.1)
+            # cmd_vel at 10 Hz of sim time, as a sim-time client (move_base) sends it however fast the
+            # sim runs; forward for --drive-sim-seconds, then zero, and the distances are taken once
+            # the robot has been at rest for 2 s of sim time (so no lag of either source counts)
+            with lock:
+                now = last["clock"]
+            if now - sent >= 0.1:
+                tick(0.2 if now - sim0 < args.drive_sim_seconds else 0.0)
+                sent = now
+            if at_rest is None and now - sim0 >= args.drive_sim_seconds + 2.0:
+                with lock:
+                    at_rest = last["gt"], last["odom"]
+            time.sleep(0.002)
         with lock:
-            sim1, gt1, od1 = last["clock"], last["gt"], last["odom"]
+            sim1 = last["clock"]
         wall = time.monotonic() - wall0
         out = {"sim_seconds": sim1 - sim0, "wall_seconds": wall, "x_real_time": (sim1 - sim0) / wall,
                "received": received}
-        if args.drive_forward and gt0 and gt1 and od0 and od1:
-            out["ground_truth_m"] = math.dist(gt0, gt1)
-            out["odom_m"] = math.dist(od0, od1)
+        if args.drive_forward and gt0 and od0 and at_rest and at_rest[0] and at_rest[1]:
+            out["ground_truth_m"] = math.dist(gt0, at_rest[0])
+            out["odom_m"] = math.dist(od0, at_rest[1])
         print(json.dumps(out), flush=True)
         rospy.signal_shutdown("done")
         return 0

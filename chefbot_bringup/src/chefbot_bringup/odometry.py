@@ -189,8 +189,11 @@ class DiffOdometry:
             self._t_last = t
             return self.state(t)
         dt = t - self._t_last
-        if dt <= 0.0:
-            # Time went backwards (sim time reset) or a duplicate call: re-baseline.
+        # dt == 0: the same clock reading as the last step (a sim's /clock is coarser than the
+        # encoder lines when it runs faster than real time) is still a step: its travel counts
+        # (re-baselining here lost every such line's travel, 32 % of it at 4.6x).
+        if dt < 0.0:
+            # Time went backwards (sim time reset): re-baseline.
             self._rebaseline(t)
             self._t_last = t
             return self.state(t)
@@ -254,6 +257,8 @@ class DiffOdometry:
             self._travel.popleft()
         t0, dist0, head0 = self._travel[0]
         _, dist1, head1 = self._travel[-1]
+        if t <= t0:   # only steps on one clock reading so far: no speed to tell yet
+            return self.v, self.w
         return (dist1 - dist0) / (t - t0), (head1 - head0) / (t - t0)
 
     def _propagate_cov(self, d: float, dtheta: float, dl: float, dr: float) -> None:

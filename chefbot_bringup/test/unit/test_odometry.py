@@ -98,6 +98,30 @@ def test_int16_wrap_is_continuous():
     assert odo.resets == 0
 
 
+def test_lines_on_one_clock_reading_lose_no_travel():
+    """A sim clock coarser than the encoder lines (uncapped sim): 30 Hz lines on a 10 Hz clock, so
+    three lines share each time; every line's ticks must still count (they were dropped: 32 %)."""
+    odo = started()
+    for k in range(1, 61):   # 2 s of lines at 30 Hz
+        ticks = round(0.2 * k / 30.0 * TPM)
+        odo.set_ticks(ticks, ticks)
+        odo.update(math.ceil(k / 3) / 10.0)
+    assert odo.resets == 0
+    assert odo.x == pytest.approx(0.4, abs=1e-4)
+    assert odo.v == pytest.approx(0.2, abs=0.01)
+
+
+def test_time_going_back_rebaselines():
+    odo = started()
+    t, left, right = drive(odo, 0.2, 0.2, 1.0, t0=5.0)
+    x = odo.x
+    odo.set_ticks(left + 1000, right + 1000)
+    odo.update(0.5)            # sim time reset: the ticks since are not integrated over a negative dt
+    assert odo.x == pytest.approx(x)
+    drive(odo, 0.2, 0.2, 1.0, t0=0.5, start=(left + 1000, right + 1000))
+    assert odo.x == pytest.approx(x + 0.2, abs=1e-3)
+
+
 def test_counter_reset_does_not_teleport():
     odo = started()
     t, _left, _right = drive(odo, 0.3, 0.3, 5.0)
