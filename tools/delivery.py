@@ -1,7 +1,8 @@
 """Scripted table deliveries through move_base, as the restaurant's client would send them.
 
 Used by `make demo` (tools/demo.py) and the delivery benchmark: a real
-``actionlib.SimpleActionClient('move_base', MoveBaseAction)`` sends each table
+``actionlib.SimpleActionClient('move_base', MoveBaseAction)`` (GoalClient: the same without
+its send_goal race) sends each table
 pose of the shared tables YAML in turn, and every leg is measured against the
 simulator's ground truth (``ground_truth/odom``): planned path length
 (``move_base/make_plan``) and the time-optimal limit along it
@@ -38,7 +39,7 @@ from plots import PlotError, pose_at, write_plots
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, yaw_from_quaternion
-from chefbot_navigation.ros_util import wait_for_action_server
+from chefbot_navigation.ros_util import GoalClient, wait_for_action_server
 from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
 MAX_SPEED = 0.35  # m/s, the robot's top speed (book requirement 0.25-0.35 m/s)
@@ -99,7 +100,7 @@ class DeliveryClient:
         self._legs: list[dict] = []
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
         rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
-        self.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        self.client = GoalClient("move_base", MoveBaseAction)
         self.tf_buffer = tf2_ros.Buffer()
         self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self._timer = rospy.Timer(rospy.Duration(SAMPLE_PERIOD_S), self._sample)
@@ -238,11 +239,10 @@ class DeliveryClient:
         # Poll the goal state against a wall-clock deadline: wait_for_result's timeout counts
         # ROS time, which would not run out if the simulation (and its /clock) stalled.
         # Finished means the *result* arrived (simple state DONE), not only a terminal status: the
-        # status array can come first, and a next goal sent then made the late result a transition
-        # on a goal handle the client no longer tracked (actionlib's "[ERROR] Got a transition
-        # callback on a goal handle that we're not tracking" in the demo's output; it can still come
-        # from actionlib's own race in send_goal, harmless, once in a CI run). A result that
-        # never follows its terminal status is waited for RESULT_GRACE s, then the status counts.
+        # status array can come first, and the next goal must not be sent before the result is in.
+        # (GoalClient: SimpleActionClient without its send_goal race, which logged "[ERROR] Got a
+        # transition callback on a goal handle that we're not tracking".)  A result that never
+        # follows its terminal status is waited for RESULT_GRACE s, then the status counts.
         deadline = time.monotonic() + timeout_wall
         finished, terminal_since = False, None
         while not finished and time.monotonic() < deadline and not rospy.is_shutdown():

@@ -20,32 +20,13 @@ import argparse
 import json
 import math
 import os
-import signal
-import socket
-import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def stop_group(proc: subprocess.Popen) -> None:
-    """SIGINT the launch's session (roslaunch stops its nodes), then SIGKILL what is left."""
-    for sig, grace in ((signal.SIGINT, 15.0), (signal.SIGKILL, 3.0)):
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(timeout=grace)
-            return
-        except subprocess.TimeoutExpired:
-            continue
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+from procs import ProcessGroup, free_port  # the workspace's tools/
 
 
 def main() -> int:
@@ -63,11 +44,10 @@ def main() -> int:
     args, launch_args = ap.parse_known_args()
     port = free_port()
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1")
-    proc = subprocess.Popen(["roslaunch", "-p", str(port), *args.launch, *launch_args], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True)
     os.environ.update(ROS_MASTER_URI=env["ROS_MASTER_URI"], ROS_HOSTNAME="127.0.0.1")
-    try:
+    # ProcessGroup: its own session, and at the end its nodes too (roslaunch starts each node in a
+    # session of its own, so killing roslaunch's group alone could leave its master running)
+    with ProcessGroup(["roslaunch", "-p", str(port), *args.launch, *launch_args], env=env):
         import rospy
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
@@ -139,8 +119,6 @@ def main() -> int:
         print(json.dumps(out), flush=True)
         rospy.signal_shutdown("done")
         return 0
-    finally:
-        stop_group(proc)
 
 
 if __name__ == "__main__":

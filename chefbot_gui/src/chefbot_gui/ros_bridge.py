@@ -15,10 +15,8 @@ import time
 from dataclasses import dataclass
 from functools import partial
 
-import actionlib
 import rospy
 import tf2_ros
-from actionlib import CommState
 from actionlib_msgs.msg import GoalStatus, GoalStatusArray
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
@@ -31,6 +29,7 @@ from chefbot_common.geometry import quaternion_from_yaw, yaw_from_quaternion
 from chefbot_common.grid import GridInfo
 from chefbot_gui import geometry
 from chefbot_gui.presenter import Destination, Outcome
+from chefbot_navigation.ros_util import GoalClient
 
 _OUTCOMES = {
     GoalStatus.SUCCEEDED: Outcome.SUCCEEDED,
@@ -104,7 +103,7 @@ class RosBridge(QObject):
     def __init__(self, params: BridgeParams | None = None, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.p = params or BridgeParams()
-        self._client = actionlib.SimpleActionClient(self.p.action, MoveBaseAction)
+        self._client = GoalClient(self.p.action, MoveBaseAction)   # SimpleActionClient minus its race
         self._tf = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
         self._tf_listener: tf2_ros.TransformListener | None = None
         self._subs: list[rospy.Subscriber] = []
@@ -167,13 +166,6 @@ class RosBridge(QObject):
             rospy.logwarn(f"chefbot_gui: goal {goal_id} not sent: {e}")
             self._report(goal_id, GoalStatus.LOST, str(e))
             return
-        # actionlib race: SimpleActionClient stores the new goal handle only after
-        # publishing the goal, so a server that answers at once (a quick reject or
-        # abort) has its transitions dropped ("a goal handle that we're not
-        # tracking") and done_cb never runs.  The handle itself did see them.
-        gh = self._client.gh
-        if gh is not None and gh.get_comm_state() == CommState.DONE:
-            self._report(goal_id, gh.get_goal_status(), gh.get_goal_status_text())
 
     def cancel_goal(self) -> None:
         """Cancel the goal this GUI sent (other clients' goals are left alone)."""

@@ -1,6 +1,7 @@
 """ROS glue shared by the navigation nodes (imports rospy/tf2): timers that survive time jumping
 back and exceptions (:func:`periodic`), a ``diagnostics`` publisher (:class:`Diagnostics`), planar
-tf lookups (:class:`PlanarTf`), a wall-clock wait for an action server (:func:`wait_for_action_server`)."""
+tf lookups (:class:`PlanarTf`), a wall-clock wait for an action server (:func:`wait_for_action_server`),
+a SimpleActionClient without its send_goal race (:class:`GoalClient`)."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,8 +9,10 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
+import actionlib
 import rospy
 import tf2_ros
 import yaml
@@ -135,6 +138,51 @@ def static_map(who: str, service: str = "static_map") -> OccupancyGrid | None:
         if not rospy.is_shutdown():
             rospy.logerr(f"{who}: no map from service '{service}': {exc}")
         return None
+
+
+class GoalClient(actionlib.SimpleActionClient):
+    """``actionlib.SimpleActionClient`` (same API) without its race in ``send_goal``.
+
+    SimpleActionClient stores the new goal's handle only after publishing the goal, and drops
+    every transition whose handle is not the stored one.  A status that arrives in between (the
+    server accepted or rejected at once) is dropped with "[ERROR] Got a transition callback on a
+    goal handle that we're not tracking", and a quick reject or abort never reaches ``done_cb``.
+    Here each goal's callbacks carry the goal's sequence number instead, so they are recognised
+    before the handle is stored; a superseded goal's late callbacks are ignored quietly.
+    """
+
+    def __init__(self, ns: str, action_spec: type) -> None:
+        super().__init__(ns, action_spec)
+        self._seq = 0
+        # the sequence check and the state it guards; reentrant: a done_cb may send the next goal
+        self._track_lock = threading.RLock()
+
+    def send_goal(self, goal, done_cb=None, active_cb=None, feedback_cb=None) -> None:
+        with self._track_lock:
+            self._seq += 1
+            seq = self._seq
+            self.stop_tracking_goal()
+            self.done_cb, self.active_cb, self.feedback_cb = done_cb, active_cb, feedback_cb
+            self.simple_state = actionlib.SimpleGoalState.PENDING
+        # not under the lock: the status thread holds actionlib's list lock when it calls back
+        gh = self.action_client.send_goal(goal, partial(self._transition, seq), partial(self._feedback, seq))
+        with self._track_lock:
+            if seq == self._seq:
+                self.gh = gh
+
+    def _transition(self, seq: int, gh) -> None:
+        with self._track_lock:
+            if seq != self._seq:
+                return
+            self.gh = gh
+            self._handle_transition(gh)
+
+    def _feedback(self, seq: int, gh, feedback) -> None:
+        with self._track_lock:
+            if seq != self._seq:
+                return
+            self.gh = gh
+            self._handle_feedback(gh, feedback)
 
 
 def wait_for_action_server(client, timeout_s: float) -> bool:
