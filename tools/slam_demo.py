@@ -50,7 +50,7 @@ from slam_workflow import (
     wait_localized,
 )
 
-LOG_DIR = ROOT / "build" / "demo_slam"
+LOG_DIR = Path(os.environ.get("CHEFBOT_DEMO_SLAM_DIR") or ROOT / "build" / "demo_slam")   # bench_explore: its own
 WORLD = ROOT / "chefbot_sim" / "worlds" / "hotel.yaml"
 TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
 TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"

@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""Live exploration benchmark: the hotel mapped by our SLAM with no one at the keyboard (issue 17).
+
+Runs ``make demo SLAM=1``'s workflow (tools/slam_demo.py: pybullet hotel at real time, plugin
+drive with the sim's noisy wheel odometry, ``slam`` + ``explore`` + ``move_base`` until no
+reachable frontier is left; map_saver; the saved map judged against the world raster, the test
+oracle, after registering its frame; then amcl on the saved map and deliveries to three tables
+judged by ground truth) in a child process, with its results in a directory of its own, and
+turns its ``slam_demo.json`` into rows.  Takes 8-12 min wall.
+
+Goals (issue 17): exploration covers >= 95 % of the reachable free area within 10 min of sim
+time; the map matches >= 95 % of the raster's visible occupied cells within one cell with
+<= 2 % false-occupied cells.  The offline figures on a recorded route are bench_slam's.
+
+    python chefbot_navigation/bench/bench_explore.py
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+TABLES = "table_1,table_5,table_9"
+EXPLORE_GOAL_S = 600.0
+
+
+def _run() -> tuple[dict, str]:
+    with tempfile.TemporaryDirectory(prefix="chefbot_bench_explore_") as d:
+        env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=d, CHEFBOT_DEMO_TABLES=TABLES,
+                   CHEFBOT_DEMO_RTF="1.0")
+        proc = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
+                              text=True, timeout=3600, start_new_session=True)
+        report = Path(d) / "slam_demo.json"
+        if not report.exists():
+            raise RuntimeError(f"slam_demo wrote no report (exit {proc.returncode}):\n{proc.stdout[-2000:]}")
+        return json.loads(report.read_text()), proc.stdout
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Rows of one live exploration run (none with ``quick``: it takes minutes)."""
+    if quick:
+        return []
+    r, out = _run()
+    case = "hotel, live: slam + explore + move_base at rtf 1, noisy wheel odometry"
+    rows: list[dict] = []
+
+    def row(metric: str, ours, goal: str | None, met: bool | None, case_: str = case) -> None:
+        rows.append({"bench": "explore", "case": case_, "metric": metric, "ours": ours, "reference": None,
+                     "reference_name": None, "goal": goal, "met": met})
+
+    explored = r.get("explore_complete", False)
+    row("s (sim) until no reachable frontier was left", r.get("explore_sim_s"), f"<= {EXPLORE_GOAL_S:g} s",
+        bool(explored and r.get("explore_sim_s", 1e9) <= EXPLORE_GOAL_S))
+    if "coverage" not in r:   # the exploration failed: say where
+        row(f"failed in stage {r.get('failed_stage')}: {r.get('error', '')[:120]}", None, None, False)
+        return rows
+    row("reachable free area mapped (%)", 100 * r["coverage"], ">= 95", r["coverage"] >= 0.95)
+    row("raster's visible occupied cells matched within 1 cell (%)", 100 * r["matched"], ">= 95",
+        r["matched"] >= 0.95)
+    row("false-occupied cells (%)", 100 * r["false_occupied"], "<= 2", r["false_occupied"] <= 0.02)
+    row("map frame registration RMS to the raster (cm)", 100 * r["registration_rms_m"], None, None)
+    if "delivered" in r:
+        row(f"tables delivered on the saved map ({TABLES}), <= 0.10 m by ground truth", r["delivered"],
+            f"{r['tables']}", r["delivered"] == r["tables"],
+            case_="hotel, then amcl + move_base on the saved map at rtf 1")
+    else:
+        row(f"deliveries: failed in stage {r.get('failed_stage')}: {r.get('error', '')[:120]}", None, None, False)
+    return rows
+
+
+if __name__ == "__main__":
+    for row in run(quick="--quick" in sys.argv):
+        print(f"{row['case']}: {row['metric']} = {row['ours']} (goal {row['goal']}: {row['met']})")
