@@ -172,7 +172,14 @@ def rostest_files() -> list[tuple[str, Path]]:
 
 # ----------------------------------------------------------------- runners
 def unit_jobs() -> int:
-    return max(1, int(os.environ.get("CHEFBOT_TEST_JOBS", "0")) or os.cpu_count() or 1)
+    """CHEFBOT_TEST_JOBS (unit suites side by side), default one per core; a bad value is said and ignored."""
+    raw = os.environ.get("CHEFBOT_TEST_JOBS", "")
+    try:
+        jobs = int(raw) if raw.strip() else 0
+    except ValueError:
+        print(f"[test] CHEFBOT_TEST_JOBS={raw!r} is not a whole number: using one job per core", flush=True)
+        jobs = 0
+    return max(1, jobs or os.cpu_count() or 1)
 
 
 def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
