@@ -25,12 +25,14 @@ from nav_msgs.msg import OccupancyGrid
 from chefbot_common.map_io import load_map
 from chefbot_common.tables import load_tables
 from chefbot_navigation.ros_io import msg_to_occupancy
+from chefbot_navigation.slam.metrics import false_occupied_clusters
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 from procs import ProcessGroup
 from slam_workflow import (
     ExploreWatch,
     clear_costmaps,
+    in_world,
     judge_map,
     localization_commands,
     save_map,
@@ -69,7 +71,11 @@ class SlamWorkflowTest(unittest.TestCase):
         m = align.pose
         print(f"[figure] exploration {took:.0f} s sim; matched {100 * q.matched:.1f} %, false occupied "
               f"{100 * q.false_occupied:.2f} %, reachable free area mapped {100 * q.coverage:.1f} %; map frame in "
-              f"the world ({m.x:+.3f}, {m.y:+.3f}) m {math.degrees(m.yaw):+.2f} deg", flush=True)
+              f"the world ({m.x:+.3f}, {m.y:+.3f}) m {math.degrees(m.yaw):+.2f} deg (registration RMS "
+              f"{100 * align.rms_m:.1f} cm); saved to {prefix}.yaml", flush=True)
+        clusters = false_occupied_clusters(in_world(saved, truth, m), truth, q.shift)
+        print("[figure] largest false-occupied clusters (cells at world x, y): " +
+              (", ".join(f"{n} at ({x:.2f}, {y:.2f})" for n, x, y in clusters) or "none"), flush=True)
         self.assertGreater(q.coverage, rospy.get_param("~min_coverage"))
         self.assertGreater(q.matched, rospy.get_param("~min_matched"))
         self.assertLess(q.false_occupied, rospy.get_param("~max_false_occupied"))

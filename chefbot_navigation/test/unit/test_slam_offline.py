@@ -130,3 +130,22 @@ def test_frontend_bad_inputs_name_the_problem():
     bad.angle_increment = math.nan
     with pytest.raises(SlamInputError, match="angle"):
         front.process(bad)
+
+
+def test_false_occupied_clusters_finds_a_phantom_wall():
+    """The failure report's clusters: a 20-cell phantom wall is the largest, at its centre."""
+    import numpy as np
+
+    from chefbot_common.grid import GridInfo, OccupancyMap
+    from chefbot_navigation.slam.metrics import false_occupied_clusters
+
+    info = GridInfo(0.05, 60, 40)
+    truth = np.zeros((40, 60), dtype=np.int8)
+    truth[0, :] = 100                        # the wall along y = 0
+    est = truth.copy()
+    est[20, 10:30] = 100                     # a phantom wall at y ~ 1.0 m, x 0.5..1.5 m
+    est[35, 50] = 100                        # one speckle
+    clusters = false_occupied_clusters(OccupancyMap(info, est), OccupancyMap(info, truth))
+    assert [n for n, _, _ in clusters] == [20, 1]
+    assert clusters[0][1] == pytest.approx(1.0, abs=0.05) and clusters[0][2] == pytest.approx(1.025, abs=0.03)
+    assert false_occupied_clusters(OccupancyMap(info, truth), OccupancyMap(info, truth)) == []

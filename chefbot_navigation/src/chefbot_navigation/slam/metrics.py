@@ -44,6 +44,25 @@ def resample(est: OccupancyMap, truth: OccupancyMap, dr: int = 0, dc: int = 0) -
     return out
 
 
+def false_occupied_clusters(est: OccupancyMap, truth: OccupancyMap, shift: tuple[int, int] = (0, 0),
+                            top: int = 3) -> list[tuple[int, float, float]]:
+    """Where the false-occupied cells of ``map_quality`` are: the ``top`` largest 8-connected clusters
+    as (cells, x, y of their centre in the truth's frame, m), largest first; ``shift`` is
+    ``MapQuality.shift``.  For a failure report: a slipped wall is one long cluster, speckle many."""
+    gt_near = ndimage.binary_dilation(truth.data > 50, structure=np.ones((3, 3)))
+    false = (resample(est, truth, *shift) > 50) & ~gt_near
+    labels, n = ndimage.label(false, structure=np.ones((3, 3)))
+    if n == 0:
+        return []
+    sizes = ndimage.sum(false, labels, index=range(1, n + 1))
+    out = []
+    for k in np.argsort(sizes)[::-1][:top]:
+        r, c = ndimage.center_of_mass(false, labels, k + 1)
+        x, y = truth.info.cell_to_world(np.array([r]), np.array([c]))
+        out.append((int(sizes[k]), float(x[0]), float(y[0])))
+    return out
+
+
 def reachable_free(truth: OccupancyMap, start_xy: tuple[float, float], robot_radius: float) -> np.ndarray:
     """Ground-truth free cells the robot can reach or touch with its body from ``start_xy``."""
     res = truth.info.resolution
