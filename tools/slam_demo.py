@@ -117,7 +117,8 @@ def run() -> int:
                   "slam_required:=false", f"world:={world}", f"real_time_factor:={rtf}", f"drive:={drive}",
                   f"use_imu:={str(use_imu).lower()}", f"x:={home.x}", f"y:={home.y}", f"yaw:={home.yaw}"]
     say(f"SLAM workflow (book ch. 4): map -> save -> localize -> deliver; world {world.name}, {drive} drive"
-        f"{', IMU heading' if use_imu else ''}, master {uri}, real-time factor {rtf}; log: {log.relative_to(ROOT)}")
+        f"{', IMU heading' if use_imu else ''}, master {uri}, real-time factor {rtf}; "
+        f"log: {log.relative_to(ROOT) if log.is_relative_to(ROOT) else log}")
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
     report: dict = {"world": str(world), "real_time_factor": rtf, "drive": drive, "use_imu": use_imu}
     LOG_DIR.mkdir(parents=True, exist_ok=True)
