@@ -5,8 +5,8 @@ Runs ``make demo SLAM=1``'s workflow (tools/slam_demo.py: pybullet hotel at real
 drive with the sim's noisy wheel odometry, ``slam`` + ``explore`` + ``move_base`` until no
 reachable frontier is left; map_saver; the saved map judged against the world raster, the test
 oracle, after registering its frame; then amcl on the saved map and deliveries to three tables
-judged by ground truth) in a child process, with its results in a directory of its own, and
-turns its ``slam_demo.json`` into rows.  Takes 8-12 min wall.
+judged by ground truth) in a child process, with its results in build/bench_explore/ (the saved
+map, logs, ``demo.out``), and turns its ``slam_demo.json`` into rows.  Takes ~7 min wall.
 
 Goals (issue 17): exploration covers >= 95 % of the reachable free area within 10 min of sim
 time; the map matches >= 95 % of the raster's visible occupied cells within one cell with
@@ -18,26 +18,30 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "build" / "bench_explore"   # the run's map, logs and report, kept until the next run
 TABLES = "table_1,table_5,table_9"
 EXPLORE_GOAL_S = 600.0
 
 
 def _run() -> tuple[dict, str]:
-    with tempfile.TemporaryDirectory(prefix="chefbot_bench_explore_") as d:
-        env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=d, CHEFBOT_DEMO_TABLES=TABLES,
-                   CHEFBOT_DEMO_RTF="1.0")
-        proc = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
-                              text=True, timeout=3600, start_new_session=True)
-        report = Path(d) / "slam_demo.json"
-        if not report.exists():
-            raise RuntimeError(f"slam_demo wrote no report (exit {proc.returncode}):\n{proc.stdout[-2000:]}")
-        return json.loads(report.read_text()), proc.stdout
+    if OUT.exists():
+        shutil.rmtree(OUT)
+    env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=str(OUT), CHEFBOT_DEMO_TABLES=TABLES,
+               CHEFBOT_DEMO_RTF="1.0")
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
+                          text=True, timeout=3600, start_new_session=True)
+    (OUT / "demo.out").write_text(proc.stdout + proc.stderr)
+    report = OUT / "slam_demo.json"
+    if not report.exists():
+        raise RuntimeError(f"slam_demo wrote no report (exit {proc.returncode}):\n{proc.stdout[-2000:]}"
+                           f"{proc.stderr[-2000:]}")
+    return json.loads(report.read_text()), proc.stdout
 
 
 def run(quick: bool = False) -> list[dict]:
