@@ -44,13 +44,22 @@ def resample(est: OccupancyMap, truth: OccupancyMap, dr: int = 0, dc: int = 0) -
     return out
 
 
+def _within_one_cell(mask: np.ndarray) -> np.ndarray:
+    """Cells at most one cell (8-neighbourhood) from a True cell of ``mask``."""
+    return ndimage.binary_dilation(mask, structure=np.ones((3, 3)))
+
+
+def _false_occupied(est_values: np.ndarray, gt_near: np.ndarray) -> np.ndarray:
+    """Occupied in the estimate (on the truth's grid) with no ground-truth obstacle within one cell."""
+    return (est_values > 50) & ~gt_near
+
+
 def false_occupied_clusters(est: OccupancyMap, truth: OccupancyMap, shift: tuple[int, int] = (0, 0),
                             top: int = 3) -> list[tuple[int, float, float]]:
     """Where the false-occupied cells of ``map_quality`` are: the ``top`` largest 8-connected clusters
     as (cells, x, y of their centre in the truth's frame, m), largest first; ``shift`` is
     ``MapQuality.shift``.  For a failure report: a slipped wall is one long cluster, speckle many."""
-    gt_near = ndimage.binary_dilation(truth.data > 50, structure=np.ones((3, 3)))
-    false = (resample(est, truth, *shift) > 50) & ~gt_near
+    false = _false_occupied(resample(est, truth, *shift), _within_one_cell(truth.data > 50))
     labels, n = ndimage.label(false, structure=np.ones((3, 3)))
     if n == 0:
         return []
@@ -85,16 +94,16 @@ def map_quality(est: OccupancyMap, truth: OccupancyMap, start_xy: tuple[float, f
         raise ValueError(f"resolutions differ: {est.info.resolution} vs {truth.info.resolution}")
     gt_occ = truth.data > 50
     reach = reachable_free(truth, start_xy, robot_radius)
-    visible = gt_occ & ndimage.binary_dilation(reach, structure=np.ones((3, 3)))
-    gt_near = ndimage.binary_dilation(gt_occ, structure=np.ones((3, 3)))
+    visible = gt_occ & _within_one_cell(reach)
+    gt_near = _within_one_cell(gt_occ)
     best = None
     for dr in range(-search, search + 1):
         for dc in range(-search, search + 1):
             e = resample(est, truth, dr, dc)
             e_occ = e > 50
-            e_near = ndimage.binary_dilation(e_occ, structure=np.ones((3, 3)))
+            e_near = _within_one_cell(e_occ)
             matched = float(e_near[visible].mean()) if visible.any() else 0.0
-            false = float((e_occ & ~gt_near).sum() / max(e_occ.sum(), 1))
+            false = float(_false_occupied(e, gt_near).sum() / max(e_occ.sum(), 1))
             cov = float((e[reach] == FREE).mean()) if reach.any() else 0.0
             q = MapQuality(matched, false, cov, (dr, dc))
             if best is None or q.matched - q.false_occupied > best.matched - best.false_occupied:
