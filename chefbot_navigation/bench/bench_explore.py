@@ -29,7 +29,7 @@ TABLES = "table_1,table_5,table_9"
 EXPLORE_GOAL_S = 600.0
 
 
-def _run() -> tuple[dict, str]:
+def _run() -> dict:
     if OUT.exists():
         shutil.rmtree(OUT)
     env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=str(OUT), CHEFBOT_DEMO_TABLES=TABLES,
@@ -41,14 +41,14 @@ def _run() -> tuple[dict, str]:
     if not report.exists():
         raise RuntimeError(f"slam_demo wrote no report (exit {proc.returncode}):\n{proc.stdout[-2000:]}"
                            f"{proc.stderr[-2000:]}")
-    return json.loads(report.read_text()), proc.stdout
+    return json.loads(report.read_text())
 
 
 def run(quick: bool = False) -> list[dict]:
     """Rows of one live exploration run (none with ``quick``: it takes minutes)."""
     if quick:
         return []
-    r, out = _run()
+    r = _run()
     case = "hotel, live: slam + explore + move_base at rtf 1, noisy wheel odometry"
     rows: list[dict] = []
 
