@@ -47,6 +47,10 @@ from chefbot_common.geometry import wrap_angle
 # observe (z, roll, pitch): large so that filters ignore them.
 UNOBSERVED_VAR = 1e6
 WHEEL_HISTORY_S = 1.0   # s of wheel turning kept to place IMU samples in time (>> imu_delay)
+# How far this process's clock may lag the encoder stream (a stalled host or, in sim, a /clock
+# that reaches this node late: the ticks then run ahead of the time they are judged against).
+# A jump that a lag this long explains is held back until the clock catches up, not dropped.
+CLOCK_LAG_S = 0.3
 
 
 def integrate_arc(x: float, y: float, theta: float, dl: float, dr: float,
@@ -110,7 +114,9 @@ class DiffOdometry:
     :meth:`update` at the publishing rate with the current time.  A counter
     jump that no wheel could have driven (board reset, lost messages during a
     reconnect) re-baselines instead of teleporting the robot; the number of
-    such events is in :attr:`resets`.
+    such events is in :attr:`resets`.  A jump that a late clock explains
+    (up to ``CLOCK_LAG_S``) is held back first, and integrated whole once the
+    clock has caught up (:attr:`held`: such steps).
     """
 
     def __init__(self, cfg: OdometryConfig) -> None:
@@ -132,6 +138,8 @@ class DiffOdometry:
         self.x = self.y = self.theta = 0.0
         self.v = self.w = 0.0
         self.resets = 0
+        self.held = 0
+        self._hold_since: float | None = None       # when the current held-back jump was first seen (s)
         self._p = np.diag([cfg.min_pose_var] * 3)   # x, y, theta covariance
         # (t, distance, heading) accumulated, over the last twist_window: the reported speeds
         self._travel: deque[tuple[float, float, float]] = deque()
@@ -167,6 +175,7 @@ class DiffOdometry:
 
     def _rebaseline(self, t: float) -> None:
         self._base_l, self._base_r = self._pos_l, self._pos_r
+        self._hold_since = None
         self._travel.clear()
         self._wheel_hist.clear()
         self._wheel_hist.append((t, 0.0))
@@ -204,12 +213,23 @@ class DiffOdometry:
         # a couple of cm for message jitter): anything bigger is a counter
         # reset or garbage, so take the new counters as the baseline.
         limit = 1.5 * cfg.max_wheel_speed * dt + 0.02
-        if abs(dl) > limit or abs(dr) > limit:
+        jump = max(abs(dl), abs(dr))
+        if jump > limit:
+            # A late clock: the ticks ran ahead of this clock, which catches up within CLOCK_LAG_S;
+            # nothing is integrated meanwhile (baseline and time kept), then the travel counts whole.
+            # (Dropping such steps lost 39 of them, several cm each, in an uncapped sim on 2 cores.)
+            lag_limit = 1.5 * cfg.max_wheel_speed * (dt + CLOCK_LAG_S) + 0.02
+            if self._hold_since is None:
+                self._hold_since = t
+            if jump <= lag_limit and t - self._hold_since <= CLOCK_LAG_S:
+                self.held += 1
+                return self.state(t)
             self.resets += 1
             self._rebaseline(t)
             self._t_last = t
             self.v = self.w = 0.0
             return self.state(t)
+        self._hold_since = None
 
         d = 0.5 * (dl + dr)
         wheel_dtheta = (dr - dl) / cfg.base_width

@@ -282,3 +282,31 @@ def test_imu_delay_is_checked() -> None:
         OdometryConfig(imu_delay=-0.01)
     with pytest.raises(ValueError, match="imu_delay"):
         OdometryConfig(imu_delay=0.3, imu_timeout=0.25)
+
+
+def test_a_late_clock_loses_no_travel():
+    """The ticks run ahead of this node's clock (a stalled host, a late /clock in an overloaded sim):
+    30 Hz lines at 0.3 m/s; six lines arrive at once while the clock still reads the time before
+    them, then it catches up.  The 6 cm step is held back and integrated whole once the clock has
+    caught up, not dropped as a counter reset (39 such drops in an uncapped demo)."""
+    odo = started()
+    for k in range(1, 91):   # 3 s of lines
+        if 30 <= k < 36:
+            continue                  # queued behind the stall
+        ticks = round(0.3 * k / 30.0 * TPM)
+        odo.set_ticks(ticks, ticks)
+        odo.update(29 / 30.0 if k in (36, 37) else k / 30.0)    # the clock stands, then jumps
+    assert odo.resets == 0
+    assert odo.held == 2
+    assert odo.x == pytest.approx(0.9, abs=1e-4)
+
+
+def test_a_jump_no_late_clock_explains_still_rebaselines():
+    """Held back for at most CLOCK_LAG_S: counters that jump further than the wheels could go even
+    over that lag re-baseline at once, and so does a held jump the clock never catches up with."""
+    odo = started()
+    t, left, right = drive(odo, 0.2, 0.2, 1.0)
+    x = odo.x
+    odo.set_ticks(left + round(0.5 * TPM), right + round(0.5 * TPM))   # 0.5 m in one line
+    odo.update(t + 0.01)
+    assert odo.resets == 1 and odo.x == pytest.approx(x)
