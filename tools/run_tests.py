@@ -7,9 +7,12 @@ Runners, in order:
      them: these have no timing in them, so they run side by side, as many at
      once as the machine has cores (CHEFBOT_TEST_JOBS overrides);
   2. every rostest file (``*/test/*.test`` and ``tests/*.test``; not
-     ``test/manual/``), one at a time (they run in sim time against the wall
-     clock: nothing else runs beside them), each with its own master on a free
-     port (rostest's default), in its own process group that is killed afterwards.
+     ``test/manual/``), each with its own master on a free port (rostest's
+     default), in its own process group that is killed afterwards.  Those that
+     run in sim time (the test or a launch file it includes mentions
+     ``use_sim_time``: a simulator paced against the wall clock) run one at a
+     time, nothing else beside them; the others (error handling, the serial
+     driver on a pty, map_server ...) run in stage 1's pool.
 
 Every child gets the environment variable CHEFBOT_TEST_RUN=<token>; at the end
 any process still carrying it is reported as a leak, killed, and counted as a
@@ -170,6 +173,39 @@ def rostest_files() -> list[tuple[str, Path]]:
     return found
 
 
+_INCLUDE = re.compile(r"""<include\s[^>]*?file\s*=\s*["']([^"']+)["']""")
+_FIND = re.compile(r"^\$\(find ([\w-]+)\)(/.*)$")
+
+
+def sim_timed(test: Path, packages: dict[str, Path] | None = None, _seen: set | None = None) -> bool:
+    """Whether a launch/test file runs in sim time: it, or a file it includes, mentions
+    ``use_sim_time``.  An include it cannot resolve (an argument in the path, another
+    workspace's package) counts as timed: the serial stage is the safe side."""
+    if packages is None:
+        packages = {ET.parse(d / "package.xml").getroot().findtext("name") or d.name: d for d in package_dirs()}
+    seen = _seen if _seen is not None else set()
+    if test in seen:
+        return False
+    seen.add(test)
+    try:
+        text = test.read_text()
+    except OSError:
+        return True
+    if "use_sim_time" in text:
+        return True
+    for ref in _INCLUDE.findall(text):
+        m = _FIND.match(ref.replace("$(dirname)", ""))
+        if ref.startswith("$(dirname)"):
+            target = test.parent / ref[len("$(dirname)"):].lstrip("/")
+        elif m and m.group(1) in packages and "$(" not in m.group(2):
+            target = packages[m.group(1)] / m.group(2).lstrip("/")
+        else:
+            return True
+        if sim_timed(target, packages, seen):
+            return True
+    return False
+
+
 # ----------------------------------------------------------------- runners
 def unit_jobs() -> int:
     """CHEFBOT_TEST_JOBS (unit suites side by side), default one per core; a bad value is said and ignored."""
@@ -217,8 +253,10 @@ def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
     return t
 
 
-def run_unit_stage(env: dict, pattern: str | None, unit: bool, firmware: bool) -> Totals:
-    """The pytest directories and the firmware's tests, side by side (none of them is timed)."""
+def run_unit_stage(env: dict, pattern: str | None, unit: bool, firmware: bool,
+                   rostests: list[tuple[str, Path]]) -> Totals:
+    """The pytest directories, the firmware's tests and the rostests that run in no sim time,
+    side by side (none of them is paced against the wall clock)."""
     total = Totals()
     dirs = unit_dirs() if unit else []
     if unit and not dirs:
@@ -227,12 +265,13 @@ def run_unit_stage(env: dict, pattern: str | None, unit: bool, firmware: bool) -
     # the pool does not end on one long job
     dirs.sort(key=lambda d: -sum(f.stat().st_size for f in d.glob("test_*.py")))
     jobs = unit_jobs()
-    if unit or firmware:
+    if unit or firmware or rostests:
         log(f"unit stage: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'}"
-            f"{' + firmware' if firmware else ''}, {jobs} at a time")
+            f"{' + firmware' if firmware else ''} + {len(rostests)} rostest(s) in no sim time, {jobs} at a time")
     with ThreadPoolExecutor(max_workers=jobs) as pool:
         futures = ([pool.submit(run_firmware, env)] if firmware else [])
         futures += [pool.submit(pytest_dir, env, d, pattern) for d in dirs]
+        futures += [pool.submit(run_rostest, env, pkg, test) for pkg, test in rostests]
         for fut in futures:
             total.add(fut.result())
     return total
@@ -288,48 +327,51 @@ def run_firmware(env: dict) -> Totals:
     return t
 
 
-def run_rostests(env: dict, pattern: str | None) -> Totals:
-    total = Totals()
-    tests = rostest_files()
-    if pattern:
-        tests = [(p, f) for p, f in tests if pattern in str(f)]
-    for pkg, test in tests:
-        rel = test.relative_to(ROOT)
-        name = f"{pkg}/{test.stem}"
-        out_dir = RESULTS / "rostest" / f"{pkg}-{test.stem}"
-        shutil.rmtree(out_dir, ignore_errors=True)
-        logf = RESULTS / "rostest" / f"{pkg}-{test.stem}.log"
-        t0 = time.monotonic()
-        # An absolute path alone: rostest infers the package from it (pkg + path is rejected).
-        # Its own results directory per test, since rostest picks the file names itself.
-        cmd = ["rostest", "--results-base-dir", str(out_dir), str(test)]
-        rc, to = run_group(cmd, env, ROSTEST_TIMEOUT_S, logf)
-        # rosunit-*.xml: one per test node, with its individual cases; rostest-*.xml: one
-        # case per test node (fails when a node never wrote results).
-        t = Totals()
-        for xml in sorted(out_dir.glob("**/rosunit-*.xml")):
-            t.add(junit_totals(xml, name))
-        agg = Totals()
-        for xml in sorted(out_dir.glob("**/rostest-*.xml")):
-            agg.add(junit_totals(xml, name))
-        if agg.failed and not t.failed:
-            t.add(Totals(failed=agg.failed, failures=agg.failures))
-        if to:
-            t.failed += 1
-            t.failures.append(f"{name}: timed out after {ROSTEST_TIMEOUT_S:.0f} s")
-        elif rc != 0 and not t.failed:
-            t.failed += 1
-            t.failures.append(f"{name}: rostest exit {rc}")
-        if t.passed + t.failed == 0:
-            t.failed += 1
-            t.failures.append(f"{name}: no test result")
-        log(f"rostest {rel}: {t.passed} passed, {t.failed} failed ({time.monotonic() - t0:.1f} s)")
-        if measured := figures(out_dir):
-            print(measured, flush=True)
-        if t.failed:
-            print(tail(logf), flush=True)
-        total.add(t)
-    return total
+def select_rostests(pattern: str | None) -> tuple[list[tuple[str, Path]], list[tuple[str, Path]]]:
+    """The rostest files (``-k``: a substring of the path), split into (sim-timed, the others)."""
+    tests = [(p, f) for p, f in rostest_files() if not pattern or pattern in str(f)]
+    timed = [(p, f) for p, f in tests if sim_timed(f)]
+    return timed, [t for t in tests if t not in timed]
+
+
+def run_rostest(env: dict, pkg: str, test: Path) -> Totals:
+    """One rostest file; its result line, figures and (when it failed) its log's tail printed as one block."""
+    rel = test.relative_to(ROOT)
+    name = f"{pkg}/{test.stem}"
+    out_dir = RESULTS / "rostest" / f"{pkg}-{test.stem}"
+    shutil.rmtree(out_dir, ignore_errors=True)
+    logf = RESULTS / "rostest" / f"{pkg}-{test.stem}.log"
+    t0 = time.monotonic()
+    # An absolute path alone: rostest infers the package from it (pkg + path is rejected).
+    # Its own results directory per test, since rostest picks the file names itself.
+    cmd = ["rostest", "--results-base-dir", str(out_dir), str(test)]
+    rc, to = run_group(cmd, env, ROSTEST_TIMEOUT_S, logf)
+    # rosunit-*.xml: one per test node, with its individual cases; rostest-*.xml: one
+    # case per test node (fails when a node never wrote results).
+    t = Totals()
+    for xml in sorted(out_dir.glob("**/rosunit-*.xml")):
+        t.add(junit_totals(xml, name))
+    agg = Totals()
+    for xml in sorted(out_dir.glob("**/rostest-*.xml")):
+        agg.add(junit_totals(xml, name))
+    if agg.failed and not t.failed:
+        t.add(Totals(failed=agg.failed, failures=agg.failures))
+    if to:
+        t.failed += 1
+        t.failures.append(f"{name}: timed out after {ROSTEST_TIMEOUT_S:.0f} s")
+    elif rc != 0 and not t.failed:
+        t.failed += 1
+        t.failures.append(f"{name}: rostest exit {rc}")
+    if t.passed + t.failed == 0:
+        t.failed += 1
+        t.failures.append(f"{name}: no test result")
+    block = [f"[test] rostest {rel}: {t.passed} passed, {t.failed} failed ({time.monotonic() - t0:.1f} s)"]
+    if measured := figures(out_dir):
+        block.append(measured)
+    if t.failed:
+        block.append(tail(logf))
+    show("\n".join(block))
+    return t
 
 
 # ----------------------------------------------------------------- leak check
@@ -365,9 +407,10 @@ def main() -> int:
 
     t0 = time.monotonic()
     total = Totals()
-    total.add(run_unit_stage(env, args.pattern, "unit" in only, "firmware" in only and not args.pattern))
-    if "rostest" in only:
-        total.add(run_rostests(env, args.pattern))
+    timed, untimed = select_rostests(args.pattern) if "rostest" in only else ([], [])
+    total.add(run_unit_stage(env, args.pattern, "unit" in only, "firmware" in only and not args.pattern, untimed))
+    for pkg, test in timed:     # one at a time: each paces a simulator against the wall clock
+        total.add(run_rostest(env, pkg, test))
 
     time.sleep(0.5)
     strays = leaked(token)

@@ -116,3 +116,36 @@ def test_free_port_is_bindable() -> None:
     port = procs.free_port()
     with socket.socket() as s:
         s.bind(("127.0.0.1", port))
+
+
+def test_sim_timed_follows_includes(tmp_path: Path) -> None:
+    """A test runs in sim time when it or anything it includes mentions use_sim_time; an include
+    that cannot be resolved counts as timed (the serial stage is the safe side)."""
+    pkg = tmp_path / "pkg_a"
+    (pkg / "launch").mkdir(parents=True)
+    (pkg / "launch" / "sim.launch").write_text('<launch><param name="/use_sim_time" value="true"/></launch>')
+    (pkg / "launch" / "plain.launch").write_text('<launch><node pkg="x" type="y" name="z"/></launch>')
+    packages = {"pkg_a": pkg}
+
+    def test_file(name: str, body: str) -> Path:
+        f = tmp_path / f"{name}.test"
+        f.write_text(f"<launch>{body}</launch>")
+        return f
+
+    assert not run_tests.sim_timed(test_file("plain", '<include file="$(find pkg_a)/launch/plain.launch"/>'),
+                                   packages)
+    assert run_tests.sim_timed(test_file("nested", '<include file="$(find pkg_a)/launch/plain.launch"/>'
+                                         '<include file="$(find pkg_a)/launch/sim.launch" />'), packages)
+    assert run_tests.sim_timed(test_file("own", '<param name="use_sim_time" value="true"/>'), packages)
+    assert run_tests.sim_timed(test_file("arg", '<include file="$(find pkg_a)/launch/$(arg which)"/>'), packages)
+    assert run_tests.sim_timed(test_file("other", '<include file="$(find rviz)/launch/x.launch"/>'), packages)
+    (tmp_path / "local.launch").write_text("<launch/>")
+    assert not run_tests.sim_timed(test_file("dirname", '<include file="$(dirname)/local.launch"/>'), packages)
+
+
+def test_sim_timed_knows_the_workspace_tests() -> None:
+    """The simulator's tests are timed; a serial-driver test on a pty is not."""
+    by_name = {f.stem: f for _, f in run_tests.rostest_files()}
+    assert run_tests.sim_timed(by_name["delivery_route_firmware"])
+    assert run_tests.sim_timed(by_name["slam_workflow"])
+    assert not run_tests.sim_timed(by_name["diff_drive"])
