@@ -41,6 +41,11 @@ from chefbot_navigation.slam.pose_graph import PoseGraph
 from chefbot_navigation.slam.scan import Scan, transform_points
 from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
 
+# a tracking match this far from the odometry prediction is logged (stats.events): a mis-match that
+# slips the map shows as one, the usual corrections of noisy wheels are a few cm and a degree or two
+LARGE_CORRECTION_XY = 0.10        # m
+LARGE_CORRECTION_YAW = math.radians(3.0)
+
 
 @dataclass
 class SlamConfig:
@@ -295,6 +300,13 @@ class Slam:
             return predicted, False
         self.stats.matched += 1
         self.stats.recoveries += int(frac > 0)
+        moved, turned = res.pose.distance(predicted), abs(wrap_angle(res.pose.yaw - predicted.yaw))
+        if frac > 0 or moved > LARGE_CORRECTION_XY or turned > LARGE_CORRECTION_YAW:
+            # for the log: a wrong match that slips the map starts as one of these
+            self.stats.events.append(f"{'widened search' if frac > 0 else 'large correction'} at scan "
+                                     f"{self.stats.scans}: {moved:.3f} m, {math.degrees(turned):.1f} deg off "
+                                     f"the odometry (score {res.score:.2f}, window {wxy:.2f} m / "
+                                     f"{math.degrees(wyaw):.0f} deg)")
         return res.pose, True
 
     def _reference(self, predicted: Pose2D) -> list[int]:
@@ -380,7 +392,9 @@ class Slam:
             return          # consistent already: keep the edge for later optimisations
         self.graph.optimize()
         self.stats.optimisations += 1
-        self.stats.events.append(f"loop {anchor}->{cur} corrected {err:.3f} m")
+        self.stats.events.append(f"loop closure keyframe {cur} -> {anchor}: corrected {err:.3f} m, "
+                                 f"{math.degrees(abs(wrap_angle(res.pose.yaw - pose.yaw))):.1f} deg "
+                                 f"(score {res.score:.2f})")
         self._reintegrate()
 
     def _reintegrate(self) -> None:
