@@ -129,6 +129,22 @@ def _two_clusters(pf: ParticleFilter, w_tracked: float) -> None:
     pf.weights = np.concatenate([np.full(n, w_tracked / n), np.full(n, (1.0 - w_tracked) / n)])
 
 
+def test_covariance_is_the_estimates_cluster_while_it_holds_the_majority() -> None:
+    """Recovery injects a few % of particles metres away on a normal route: the whole set's spread
+    was then 0.5-1 m ("not localized" while tracking within 3 cm).  The estimate's cluster's
+    covariance is reported while that cluster holds most of the weight; without a majority (several
+    hypotheses) the whole set's."""
+    pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=400), np.random.default_rng(0))
+    pf.tracked = Pose2D(2.0, 2.0, 0.0)
+    _two_clusters(pf, 0.9)                      # 10 % injected 4 m away
+    _, cov, cl = pf.estimate()
+    assert cl[0].weight == pytest.approx(0.9)
+    assert math.sqrt(cov[0, 0] + cov[1, 1]) < 0.1
+    _two_clusters(pf, 0.45)                     # two hypotheses, neither a majority
+    _, cov, _ = pf.estimate()
+    assert math.sqrt(cov[0, 0] + cov[1, 1]) > 1.0
+
+
 def test_estimate_stays_with_the_tracked_cluster_until_another_clearly_outweighs_it() -> None:
     """A look-alike cluster (recovery injection) slightly heavier for an update must not move the
     estimate; one switch_ratio times heavier does (a real kidnap), and switch_ratio 1 is amcl's rule."""
@@ -276,3 +292,20 @@ def test_shipped_param_file_is_complete_and_valid() -> None:
     assert set(params) == fields, f"not pinned in amcl.yaml: {fields - set(params)}"
     cfg = AmclConfig(**params)
     assert cfg.laser_max_beams == 60 and cfg.min_particles == 500 and cfg.max_particles == 2000
+
+
+def test_recovery_waits_for_a_poor_fit() -> None:
+    """w_fast below w_slow injects (amcl) only while the set's mean beam fit is below max_fit: a view
+    that fits worse than the average but well (a long corridor, 0.75) injects nothing, a kidnap's
+    poor fit does; max_fit 1 is amcl's rule (the alphas alone)."""
+    gated = ParticleFilter(FilterConfig(min_particles=10, max_particles=100, max_fit=0.7), np.random.default_rng(0))
+    amcl_rule = ParticleFilter(FilterConfig(min_particles=10, max_particles=100), np.random.default_rng(0))
+    for pf in (gated, amcl_rule):
+        pf.w_slow, pf.w_fast = 1.0, 0.78
+        pf.last_fit = 0.75
+    assert gated.w_diff == 0.0
+    assert amcl_rule.w_diff == pytest.approx(0.22)
+    gated.last_fit = 0.3
+    assert gated.w_diff == pytest.approx(0.22)
+    with pytest.raises(ValueError, match="recovery_max_fit"):
+        FilterConfig(max_fit=0.0)

@@ -84,6 +84,8 @@ class AmclConfig:
     recovery_refine: int = 4            # ours: jittered copies per chosen candidate, scored again (0: none)
     estimate_switch_ratio: float = 3.0  # ours: another cluster must be this many times heavier to become the
                                         # estimate (1: always the heaviest, as amcl)
+    recovery_max_fit: float = 0.7       # ours: no recovery injection while the mean beam fit is at least this
+                                        # (1: amcl, the alphas alone)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
@@ -119,7 +121,7 @@ class AmclConfig:
         return FilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
                             self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool,
                             self.recovery_scans, self.recovery_beams, self.recovery_refine,
-                            self.estimate_switch_ratio)
+                            self.estimate_switch_ratio, self.recovery_max_fit)
 
     def motion_noise(self) -> DiffMotionNoise:
         """The odometry motion model's noise (odom_alpha1..4)."""

@@ -87,11 +87,13 @@ def kld_count(particles_in_draw_order: np.ndarray, err: float, z: float, n_min: 
 
 @dataclass(frozen=True)
 class Cluster:
-    """A pose hypothesis: weighted mean (x m, y m, yaw rad), total weight (0..1), member count."""
+    """A pose hypothesis: weighted mean (x m, y m, yaw rad), total weight (0..1), member count,
+    covariance (3, 3) of its members."""
 
     mean: tuple[float, float, float]
     weight: float
     count: int
+    cov: np.ndarray | None = None
 
 
 def weighted_mean_cov(particles: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,6 +142,6 @@ def clusters(particles: np.ndarray, weights: np.ndarray, limit: int = 8) -> list
     out = []
     for j in np.argsort(-totals)[:limit]:
         sel = inv == j
-        mean, _ = weighted_mean_cov(particles[sel], w[sel])
-        out.append(Cluster((float(mean[0]), float(mean[1]), float(mean[2])), float(totals[j]), int(sel.sum())))
+        mean, cov = weighted_mean_cov(particles[sel], w[sel])
+        out.append(Cluster((float(mean[0]), float(mean[1]), float(mean[2])), float(totals[j]), int(sel.sum()), cov))
     return out
