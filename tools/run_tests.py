@@ -194,10 +194,9 @@ def sim_timed(test: Path, packages: dict[str, Path] | None = None, _seen: set | 
     if "use_sim_time" in text:
         return True
     for ref in _INCLUDE.findall(text):
-        m = _FIND.match(ref.replace("$(dirname)", ""))
         if ref.startswith("$(dirname)"):
             target = test.parent / ref[len("$(dirname)"):].lstrip("/")
-        elif m and m.group(1) in packages and "$(" not in m.group(2):
+        elif (m := _FIND.match(ref)) and m.group(1) in packages and "$(" not in m.group(2):
             target = packages[m.group(1)] / m.group(2).lstrip("/")
         else:
             return True

@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -93,7 +93,7 @@ class Cluster:
     mean: tuple[float, float, float]
     weight: float
     count: int
-    cov: np.ndarray | None = None
+    cov: np.ndarray | None = field(default=None, compare=False)   # an array: not part of equality
 
 
 def weighted_mean_cov(particles: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
