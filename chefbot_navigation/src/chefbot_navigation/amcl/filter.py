@@ -239,7 +239,6 @@ class ParticleFilter:
         dies out within a few updates, and the estimate moves.
         """
         cl = clusters(self.particles, self.weights)
-        _, cov = weighted_mean_cov(self.particles, self.weights)
         best = cl[0]
         if self.tracked is not None and self.cfg.switch_ratio > 1.0:
             t = self.tracked
@@ -252,4 +251,6 @@ class ParticleFilter:
         self.tracked = Pose2D(*best.mean)
         if best.weight >= MAJORITY and best.cov is not None:
             cov = best.cov
+        else:
+            _, cov = weighted_mean_cov(self.particles, self.weights)
         return Pose2D(*best.mean), cov, cl

@@ -167,11 +167,15 @@ class Amcl:
         self.updates = 0
         self.estimate: Estimate | None = None
         self.map_T_odom: Pose2D | None = None
-        self.fit = math.nan                   # weighted mean beam fit of the last update (0..1)
         self.last_scan: float | None = None   # s, stamp of the last scan used
         self.scan_times: deque[float] = deque(maxlen=200)     # stamps (s) of recent scans handled
         self.update_times: deque[float] = deque(maxlen=200)   # stamps (s) of recent filter updates
         self.update_ms: deque[float] = deque(maxlen=50)       # wall-clock cost (ms) of recent updates
+
+    @property
+    def fit(self) -> float:
+        """Weighted mean beam fit (0..1) of the last filter update (nan before the first)."""
+        return self.pf.last_fit
 
     # ------------------------------------------------------------ inputs
     def set_map(self, occ: OccupancyMap) -> None:
@@ -256,7 +260,7 @@ class Amcl:
                 pose, cov, _ = self.pf.estimate()
                 self.estimate = Estimate(pose, cov, t)
                 raise ValueError("scan has no valid beam (all NaN/inf or out of range)")
-            self.fit = self.pf.weigh(self.field, endpoints, rmax)
+            self.pf.weigh(self.field, endpoints, rmax)
             pose, cov, _ = self.pf.estimate()
             self.estimate = Estimate(pose, cov, t)
             self.updates += 1
