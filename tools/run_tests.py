@@ -163,11 +163,15 @@ def unit_dirs() -> list[Path]:
     return [d for d in sorted(ROOT.glob("*/test/unit")) + [ROOT / "tests" / "unit"] if d.is_dir()]
 
 
+def package_name(pkg_dir: Path) -> str:
+    """The package's name from its package.xml (the directory's name if it has none)."""
+    return ET.parse(pkg_dir / "package.xml").getroot().findtext("name") or pkg_dir.name
+
+
 def rostest_files() -> list[tuple[str, Path]]:
     found = []
     for pkg_dir in package_dirs():
-        pkg = pkg_dir.name
-        name = ET.parse(pkg_dir / "package.xml").getroot().findtext("name") or pkg
+        name = package_name(pkg_dir)
         for test in sorted(pkg_dir.glob("test/*.test")) + sorted(pkg_dir.glob("test/rostest/*.test")):
             found.append((name, test))
     return found
@@ -182,7 +186,7 @@ def sim_timed(test: Path, packages: dict[str, Path] | None = None, _seen: set | 
     ``use_sim_time``.  An include it cannot resolve (an argument in the path, another
     workspace's package) counts as timed: the serial stage is the safe side."""
     if packages is None:
-        packages = {ET.parse(d / "package.xml").getroot().findtext("name") or d.name: d for d in package_dirs()}
+        packages = {package_name(d): d for d in package_dirs()}
     seen = _seen if _seen is not None else set()
     if test in seen:
         return False
@@ -329,7 +333,8 @@ def run_firmware(env: dict) -> Totals:
 def select_rostests(pattern: str | None) -> tuple[list[tuple[str, Path]], list[tuple[str, Path]]]:
     """The rostest files (``-k``: a substring of the path), split into (sim-timed, the others)."""
     tests = [(p, f) for p, f in rostest_files() if not pattern or pattern in str(f)]
-    timed = [(p, f) for p, f in tests if sim_timed(f)]
+    packages = {package_name(d): d for d in package_dirs()}     # read once for all the tests
+    timed = [(p, f) for p, f in tests if sim_timed(f, packages)]
     return timed, [t for t in tests if t not in timed]
 
 
