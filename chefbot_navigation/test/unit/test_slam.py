@@ -176,6 +176,45 @@ def test_loop_closure_on_square_corridor():
     assert _double_walls(open_loop, segs) > 0.3
 
 
+def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False):
+    """The corridor run, with the loop matcher answering 0.3 m off the truth at its first good match
+    (``every``: at all of them) - what a look-alike place (a second table like the first) does."""
+    import chefbot_navigation.slam.mapper as mapper
+
+    real, calls = mapper.match, []
+
+    def look_alike(fld, pts, prior, window, *a, **k):
+        res = real(fld, pts, prior, window, *a, **k)
+        if window.xy == cfg.loop_xy and res.score >= cfg.loop_min_score and res.spread <= cfg.loop_max_spread \
+                and (every or not calls):
+            calls.append(prior)
+            res.pose = Pose2D(res.pose.x + 0.3, res.pose.y, res.pose.yaw)
+        return res
+
+    mapper.match = look_alike
+    try:
+        return _run_corridor(cfg) + (calls,)
+    finally:
+        mapper.match = real
+
+
+def test_a_single_look_alike_loop_match_is_not_used():
+    slam, segs, err, _, calls = _corridor_with_a_look_alike(SlamConfig())
+    assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
+    assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
+    assert _double_walls(slam, segs) < 0.01
+    # without the confirmation the same answer is taken and bends the map
+    slam, segs, err, _, _ = _corridor_with_a_look_alike(SlamConfig(loop_confirm_fit=1.5))
+    assert slam.stats.loop_unconfirmed == 0 and err.max() > 0.1, (err.max(), slam.stats)
+
+
+def test_loop_matches_that_agree_are_used():
+    # the same 0.3 m at every match is what a real drift looks like: confirmed and applied
+    slam, _, err, _, calls = _corridor_with_a_look_alike(SlamConfig(), every=True)
+    assert len(calls) >= 3 and slam.stats.loop_closures >= 2, slam.stats
+    assert err.max() > 0.15, err.max()
+
+
 def test_raw_odometry_map_is_worse():
     slam, segs, err, _ = _run_corridor(SlamConfig(scan_matching=False))
     assert np.sqrt((err ** 2).mean()) > 0.2

@@ -15,7 +15,11 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
 4. Loop closure: keyframes driven past more than ``loop_min_travel`` m ago
    and lying within ``loop_search_radius`` m are the candidates; the scan is
    matched in a wide window against their obstacle points; a good match
-   (``loop_min_score``) adds a loop edge, the graph is optimised, and every
+   (``loop_min_score``) adds a loop edge - if the pose before it already fitted
+   the candidates (``loop_confirm_fit``), only once a second match within
+   ``loop_confirm_window`` keyframes asks for the same correction (a look-alike
+   table or chair gives one good match, a real drift gives them in a row) -,
+   the graph is optimised, and every
    keyframe that moved is re-integrated (its old ray-cast contribution is
    subtracted, the new one added: the grid stores unclamped log-odds sums, so
    this is exact; clamping is applied when the map is read).
@@ -91,6 +95,11 @@ class SlamConfig:
     loop_min_score: float = 0.7          # mean likelihood to accept a loop closure
     loop_max_spread: float = 0.05        # m, reject an ambiguous closure (corridor aliasing)
     loop_every: int = 3                  # keyframes between loop-closure attempts
+    loop_confirm_fit: float = 0.6        # the pose before the closure scores this against the loop candidates:
+    #                                      the closure is used only once a second match agrees with it (1: never)
+    loop_confirm_window: int = 30        # keyframes within which the second match must come
+    loop_confirm_xy: float = 0.1         # m, largest disagreement of the two corrections
+    loop_confirm_yaw: float = 0.035      # rad
     edge_sigma_xy: float = 0.02          # m, std-dev of a matched keyframe-to-keyframe edge
     edge_sigma_yaw: float = 0.01         # rad
     loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
@@ -113,7 +122,8 @@ class SlamConfig:
     def validate(self) -> None:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
-                    "loop_xy", "loop_yaw", "loop_max_spread", "edge_sigma_xy", "edge_sigma_yaw",
+                    "loop_xy", "loop_yaw", "loop_max_spread", "loop_confirm_fit", "loop_confirm_xy", "loop_confirm_yaw",
+                    "edge_sigma_xy", "edge_sigma_yaw",
                     "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw",
                     "refine_max_spread", "turn_calibration_min", "turn_scale_limit", "beams_per_dof", "max_xy",
                     "sigma_xy_min", "sigma_yaw_min", "l_occ", "l_clamp")
@@ -133,7 +143,8 @@ class SlamConfig:
                              f"x {self.xmin}..{self.xmax}, y {self.ymin}..{self.ymax}")
         if not (isinstance(self.refine_passes, int) and self.refine_passes >= 0):
             raise ValueError(f"refine_passes must be an integer >= 0, got {self.refine_passes!r}")
-        for name in ("local_keyframes", "loop_every", "min_match_beams", "recovery_min_beams", "refine_every"):
+        for name in ("local_keyframes", "loop_every", "loop_confirm_window", "min_match_beams", "recovery_min_beams",
+                     "refine_every"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
 
@@ -150,6 +161,18 @@ class Keyframe:
 
 
 @dataclass
+class _Closure:
+    """A loop match: keyframe ``cur`` seen from keyframe ``anchor`` as ``z``; ``correction`` (map frame) moves
+    the keyframe's pose at match time onto the matched pose; its score."""
+
+    cur: int
+    anchor: int
+    z: Pose2D
+    correction: Pose2D
+    score: float
+
+
+@dataclass
 class SlamStats:
     """Counters for logs and the benchmark."""
 
@@ -158,6 +181,7 @@ class SlamStats:
     matched: int = 0
     recoveries: int = 0
     loop_closures: int = 0
+    loop_unconfirmed: int = 0            # loop matches that no second match confirmed (loop_confirm_fit)
     optimisations: int = 0
     reintegrated: int = 0
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
@@ -181,6 +205,7 @@ class Slam:
         # per scan: (stamp, keyframe index, odometry pose) -> pose = kf pose * (kf odom^-1 * odom)
         self._scans: list[tuple[float, int, Pose2D]] = []
         self._since_loop = 0
+        self._pending: _Closure | None = None   # an accepted loop match waiting for a second one (loop_confirm_fit)
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
         self._turn = [0.0, 0.0]       # in-place turning between matched keyframes: (odometry, matched) rad
 
@@ -385,9 +410,20 @@ class Slam:
         if res.score < c.loop_min_score or res.spread > c.loop_max_spread:
             return
         anchor = min(cands, key=lambda i: self.graph.poses[i].distance(res.pose))
-        z = self.graph.poses[anchor].inverse().compose(res.pose)
-        self.graph.add_edge(anchor, cur, z, (c.loop_sigma_xy, c.loop_sigma_xy, c.loop_sigma_yaw), loop=True)
-        self.stats.loop_closures += 1
+        closure = _Closure(cur, anchor, self.graph.poses[anchor].inverse().compose(res.pose),
+                           res.pose.compose(pose.inverse()), res.score)
+        # the pose before the closure already fits the old keyframes: the match contradicts a consistent
+        # map (a look-alike place gives one good match there, a real drift gives them in a row), so it is
+        # used only once the next match within loop_confirm_window keyframes asks for the same correction
+        fit = float(fld.score_points(transform_points(pose, kf.scan.hits)).mean())
+        pending, self._pending = self._pending, None
+        if fit >= c.loop_confirm_fit:
+            if pending is None or not self._agree(pending, closure):
+                self.stats.loop_unconfirmed += pending is not None
+                self._pending = closure
+                return
+            self._add_loop_edge(pending)
+        self._add_loop_edge(closure)
         err = res.pose.distance(pose)
         if err < c.delta / 2 and abs(wrap_angle(res.pose.yaw - pose.yaw)) < 0.005:
             return          # consistent already: keep the edge for later optimisations
@@ -395,8 +431,24 @@ class Slam:
         self.stats.optimisations += 1
         self.stats.events.append(f"loop closure keyframe {cur} -> {anchor}: corrected {err:.3f} m, "
                                  f"{math.degrees(abs(wrap_angle(res.pose.yaw - pose.yaw))):.1f} deg "
-                                 f"(score {res.score:.2f})")
+                                 f"(score {res.score:.2f}{', confirmed' if fit >= c.loop_confirm_fit else ''})")
         self._reintegrate()
+
+    def _add_loop_edge(self, cl: _Closure) -> None:
+        c = self.cfg
+        self.graph.add_edge(cl.anchor, cl.cur, cl.z, (c.loop_sigma_xy, c.loop_sigma_xy, c.loop_sigma_yaw), loop=True)
+        self.stats.loop_closures += 1
+
+    def _agree(self, first: _Closure, second: _Closure) -> bool:
+        """Whether two loop matches, ``loop_confirm_window`` keyframes apart at most, ask for the same
+        correction of the current pose (the drift they correct is shared by neighbouring keyframes; two
+        look-alike matches rarely are off by the same amount)."""
+        c = self.cfg
+        if second.cur - first.cur > c.loop_confirm_window:
+            return False
+        pose = self.graph.poses[second.cur]
+        a, b = first.correction.compose(pose), second.correction.compose(pose)
+        return a.distance(b) <= c.loop_confirm_xy and abs(wrap_angle(a.yaw - b.yaw)) <= c.loop_confirm_yaw
 
     def _reintegrate(self) -> None:
         tol_xy, tol_yaw = self.cfg.delta / 4, 0.25 * self.cfg.delta / max(self.cfg.maxUrange, 1.0)
