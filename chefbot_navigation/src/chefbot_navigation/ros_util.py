@@ -187,11 +187,17 @@ class GoalClient(actionlib.SimpleActionClient):
 
 def wait_for_action_server(client, timeout_s: float) -> bool:
     """Wait up to ``timeout_s`` seconds of WALL time until ``client`` (a SimpleActionClient) sees its
-    server: a status message arrived and the server subscribes to our goals.  False on timeout or
+    server: a status message arrived, the server subscribes to our goals, and our clock runs (under
+    ``/use_sim_time`` ROS time is 0 until the first ``/clock`` message).  False on timeout or
     shutdown.  Not actionlib's ``wait_for_server``: its timeout counts ROS time, which under a fast
-    simulation runs out before the client has connected, and never with a stalled /clock."""
+    simulation runs out before the client has connected, and never with a stalled /clock.
+
+    Why the clock: actionlib stamps each goal id with ROS time, and a SimpleActionServer cancels
+    ("RECALLED ... another goal was received") every goal stamped older than its current one, so a
+    goal sent by a node that has no clock yet (stamp 0) is dropped at once.  This happened to the
+    ``deliver`` command started right after another client's goal (cafe rostest, 2026-11-24)."""
     ac, deadline = client.action_client, time.monotonic() + timeout_s
-    while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0:
+    while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0 or rospy.get_rostime().is_zero():
         if time.monotonic() > deadline or rospy.is_shutdown():
             return False
         time.sleep(0.05)

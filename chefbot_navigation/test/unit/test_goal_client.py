@@ -110,3 +110,38 @@ def test_done_cb_may_send_the_next_goal(monkeypatch) -> None:
 
     client.send_goal(MoveBaseGoal(), done_cb=chain)
     assert done == [GoalStatus.SUCCEEDED] * 3
+
+
+class _Connections:
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def get_num_connections(self) -> int:
+        return self.n
+
+
+class _Seen:
+    """A SimpleActionClient whose ActionClient has seen the server's status and goal subscriber."""
+
+    def __init__(self) -> None:
+        self.action_client = type("AC", (), {})()
+        self.action_client.last_status_msg = object()
+        self.action_client.pub_goal = _Connections(1)
+
+
+def test_wait_for_action_server_waits_for_the_clock(monkeypatch) -> None:
+    # a sim-time node before its first /clock: ROS time 0; a goal stamped 0 is cancelled by the
+    # server as older than its current one, so the wait must not end before the clock runs
+    import rospy
+
+    from chefbot_navigation.ros_util import wait_for_action_server
+
+    monkeypatch.setattr(rospy, "is_shutdown", lambda: False)
+    now = [rospy.Time(0)]
+    monkeypatch.setattr(rospy, "get_rostime", lambda: now[0])
+    assert not wait_for_action_server(_Seen(), 0.2)
+    now[0] = rospy.Time(12, 5)
+    assert wait_for_action_server(_Seen(), 0.2)
+    seen = _Seen()
+    seen.action_client.pub_goal = _Connections(0)       # the server does not subscribe to goals yet
+    assert not wait_for_action_server(seen, 0.2)
