@@ -194,8 +194,8 @@ def wait_for_action_server(client, timeout_s: float) -> bool:
 
     Why the clock: actionlib stamps each goal id with ROS time, and a SimpleActionServer cancels
     ("RECALLED ... another goal was received") every goal stamped older than its current one, so a
-    goal sent by a node that has no clock yet (stamp 0) is dropped at once.  This happened to the
-    ``deliver`` command started right after another client's goal (cafe rostest, 2026-11-24)."""
+    goal sent by a node that has no clock yet (stamp 0) is dropped at once: the ``deliver`` command
+    started after another client's goal is the case (seen by hand with a client on wall-clock stamps)."""
     ac, deadline = client.action_client, time.monotonic() + timeout_s
     while ac.last_status_msg is None or ac.pub_goal.get_num_connections() == 0 or rospy.get_rostime().is_zero():
         if time.monotonic() > deadline or rospy.is_shutdown():
