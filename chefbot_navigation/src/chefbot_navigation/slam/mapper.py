@@ -96,7 +96,7 @@ class SlamConfig:
     loop_max_spread: float = 0.05        # m, reject an ambiguous closure (corridor aliasing)
     loop_every: int = 3                  # keyframes between loop-closure attempts
     loop_confirm_fit: float = 0.6        # the pose before the closure scores this against the loop candidates:
-    #                                      the closure is used only once a second match agrees with it (1: never)
+    #                                      the closure is used only once a second match agrees with it (> 1: never)
     loop_confirm_window: int = 30        # keyframes within which the second match must come
     loop_confirm_xy: float = 0.1         # m, largest disagreement of the two corrections
     loop_confirm_yaw: float = 0.035      # rad
@@ -163,13 +163,12 @@ class Keyframe:
 @dataclass
 class _Closure:
     """A loop match: keyframe ``cur`` seen from keyframe ``anchor`` as ``z``; ``correction`` (map frame) moves
-    the keyframe's pose at match time onto the matched pose; its score."""
+    the keyframe's pose at match time onto the matched pose."""
 
     cur: int
     anchor: int
     z: Pose2D
     correction: Pose2D
-    score: float
 
 
 @dataclass
@@ -411,7 +410,7 @@ class Slam:
             return
         anchor = min(cands, key=lambda i: self.graph.poses[i].distance(res.pose))
         closure = _Closure(cur, anchor, self.graph.poses[anchor].inverse().compose(res.pose),
-                           res.pose.compose(pose.inverse()), res.score)
+                           res.pose.compose(pose.inverse()))
         # the pose before the closure already fits the old keyframes: the match contradicts a consistent
         # map (a look-alike place gives one good match there, a real drift gives them in a row), so it is
         # used only once the next match within loop_confirm_window keyframes asks for the same correction
