@@ -95,6 +95,19 @@ def test_matcher_recovers_known_offset(dx, dy, dyaw):
     assert res.score > 0.8
 
 
+def test_matcher_says_when_the_best_is_on_the_window_edge():
+    segs = _room()
+    truth = Pose2D(0.2, 0.1, 0.3)
+    fld = LikelihoodField(transform_points(Pose2D(), _scan_at(segs, Pose2D()).hits), 0.05, sigma=0.07)
+    scan = _scan_at(segs, truth)
+    inside = match(fld, scan.hits, Pose2D(truth.x + 0.15, truth.y, truth.yaw), SearchWindow(0.3, 0.2, 0.02))
+    assert not inside.on_border and inside.pose.distance(truth) < 0.03
+    beyond = match(fld, scan.hits, Pose2D(truth.x + 0.5, truth.y, truth.yaw), SearchWindow(0.3, 0.2, 0.02))
+    assert beyond.on_border and beyond.pose.distance(truth) > 0.15      # the best it could do: the edge
+    turned = match(fld, scan.hits, Pose2D(truth.x, truth.y, truth.yaw + 0.35), SearchWindow(0.3, 0.2, 0.02))
+    assert turned.on_border
+
+
 def test_matcher_on_narrow_depth_camera_scan():
     segs = _room()
     truth = Pose2D(-1.0, 0.5, 0.2)
@@ -176,9 +189,10 @@ def test_loop_closure_on_square_corridor():
     assert _double_walls(open_loop, segs) > 0.3
 
 
-def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False):
+def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False, border: bool = False):
     """The corridor run, with the loop matcher answering 0.3 m off the truth at its first good match
-    (``every``: at all of them) - what a look-alike place (a second table like the first) does."""
+    (``every``: at all of them; ``border``: saying it lies on the window's edge) - what a look-alike
+    place (a second table like the first) does."""
     import chefbot_navigation.slam.mapper as mapper
 
     real, calls = mapper.match, []
@@ -189,6 +203,7 @@ def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False):
                 and (every or not calls):
             calls.append(prior)
             res.pose = Pose2D(res.pose.x + 0.3, res.pose.y, res.pose.yaw)
+            res.on_border = border
         return res
 
     mapper.match = look_alike
@@ -206,6 +221,14 @@ def test_a_single_look_alike_loop_match_is_not_used():
     # without the confirmation the same answer is taken and bends the map
     slam, segs, err, _, _ = _corridor_with_a_look_alike(SlamConfig(loop_confirm_fit=1.5))
     assert slam.stats.loop_unconfirmed == 0 and err.max() > 0.1, (err.max(), slam.stats)
+
+
+def test_a_single_loop_match_on_the_window_edge_is_not_used():
+    # the fit test off (> 1): a match on the search window's edge alone makes the closure wait
+    cfg = SlamConfig(loop_confirm_fit=1.5)
+    slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, border=True)
+    assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
+    assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
 
 
 def test_loop_matches_that_agree_are_used():

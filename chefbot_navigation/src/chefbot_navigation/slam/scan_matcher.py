@@ -29,13 +29,16 @@ from chefbot_common.geometry import Pose2D, wrap_angle
 @dataclass
 class MatchResult:
     """Best pose, its score (mean likelihood of the beam ends, 0..1), the number of beams used,
-    and ``spread`` (m): the largest standard deviation of the positions scoring within 5 % of
-    the best (large along a corridor, where the scan cannot fix the position)."""
+    ``spread`` (m): the largest standard deviation of the positions scoring within 5 % of
+    the best (large along a corridor, where the scan cannot fix the position), and ``on_border``:
+    the coarse best lies on the edge of the search window (x, y or yaw), so it may be no maximum
+    at all - the score may still rise outside the window."""
 
     pose: Pose2D
     score: float
     beams: int
     spread: float = 0.0
+    on_border: bool = False
 
 
 class LikelihoodField:
@@ -137,6 +140,8 @@ def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: Sea
     fine = refine(field, pts, best, res / 2.0, window.yaw_step / 2.0, prior, prior_sigma, beams_per_dof)
     fine = refine(field, pts, fine.pose, res / 8.0, window.yaw_step / 8.0, prior, prior_sigma, beams_per_dof)
     fine.spread = spread
+    fine.on_border = bool((n_th > 0 and t in (0, len(dths) - 1))
+                          or (n_xy > 0 and (ix in (0, len(offs) - 1) or iy in (0, len(offs) - 1))))
     return fine
 
 
