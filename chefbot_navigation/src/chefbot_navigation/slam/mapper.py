@@ -183,7 +183,7 @@ class SlamStats:
     matched: int = 0
     recoveries: int = 0
     loop_closures: int = 0
-    loop_unconfirmed: int = 0            # loop matches that no second match confirmed (loop_confirm_fit)
+    loop_unconfirmed: int = 0            # held loop matches that no second match confirmed (_close_loop)
     optimisations: int = 0
     reintegrated: int = 0
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
@@ -207,7 +207,7 @@ class Slam:
         # per scan: (stamp, keyframe index, odometry pose) -> pose = kf pose * (kf odom^-1 * odom)
         self._scans: list[tuple[float, int, Pose2D]] = []
         self._since_loop = 0
-        self._pending: _Closure | None = None   # an accepted loop match waiting for a second one (loop_confirm_fit)
+        self._pending: _Closure | None = None   # a held loop match waiting for a second one (_close_loop)
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
         self._turn = [0.0, 0.0]       # in-place turning between matched keyframes: (odometry, matched) rad
 
