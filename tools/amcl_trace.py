@@ -7,14 +7,18 @@ developer's tool for localization failures; the ground truth is the TEST ORACLE,
 
 Each line: sim time ``t``, the status ``level`` and ``msg``, every value amcl reports (particles,
 mean_beam_fit, w_slow, w_fast, injected_last_resample, estimate_switches, x, y, yaw, std_xy ...)
-and the ground truth ``gx``, ``gy``.  The summary prints the lines where something happened:
-particles injected, the estimate switching cluster, or the estimate over 0.15 m off.  This is how
-the cafe's home-leg failure of 2026-11-23 was traced to recovery injection (chefbot_navigation
-README, amcl "recovery").
+and the ground truth ``gx``, ``gy`` at the same moment as the estimate: amcl's last ``amcl_pose``
+(stamped with the scan its update used) against the ground truth interpolated at that stamp.  (The
+diagnostics' x, y are that last update's estimate; against the newest ground truth instead, a
+robot driving at 0.35 m/s showed a 5 cm "error" along its motion that was only the time between.)
+The summary prints the lines where something happened: particles injected, the estimate switching
+cluster, or the estimate over 0.15 m off. This is how the cafe's home-leg failure of 2026-11-23 was
+traced to recovery injection (chefbot_navigation README, amcl "recovery").
 """
 from __future__ import annotations
 
 import argparse
+import bisect
 import json
 import math
 import sys
@@ -40,15 +44,41 @@ def summary(path: str, err_over: float = 0.15) -> list[str]:
     return out
 
 
-def record(path: str) -> None:
+def truth_at(history: list[tuple[float, float, float]], t: float) -> tuple[float, float] | None:
+    """Ground truth (x, y) at time ``t`` interpolated in ``history`` ((t, x, y), oldest first); None when
+    ``t`` lies outside it."""
+    if not history or t < history[0][0] or t > history[-1][0]:
+        return None
+    i = bisect.bisect_left([h[0] for h in history], t)
+    if history[i][0] == t or i == 0:
+        return history[i][1], history[i][2]
+    (t0, x0, y0), (t1, x1, y1) = history[i - 1], history[i]
+    a = (t - t0) / (t1 - t0)
+    return x0 + a * (x1 - x0), y0 + a * (y1 - y0)
+
+
+def record(path: str, keep_s: float = 10.0) -> None:
     import rospy
     from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PoseWithCovarianceStamped
     from nav_msgs.msg import Odometry
 
-    truth: list[Odometry] = []
+    history: list[tuple[float, float, float]] = []      # ground truth (t, x, y), the last keep_s seconds
+    estimate: list[dict] = []                           # the last amcl_pose with the truth at its stamp
 
     def on_truth(msg: Odometry) -> None:
-        truth[:] = [msg]
+        t, p = msg.header.stamp.to_sec(), msg.pose.pose.position
+        if history and t < history[-1][0]:
+            history.clear()                             # time jumped back (sim restarted)
+        history.append((t, p.x, p.y))
+        while history and history[0][0] < t - keep_s:
+            history.pop(0)
+
+    def on_pose(msg: PoseWithCovarianceStamped) -> None:
+        t, p = msg.header.stamp.to_sec(), msg.pose.pose.position
+        g = truth_at(history, t)
+        if g is not None:
+            estimate[:] = [{"x": str(p.x), "y": str(p.y), "gx": g[0], "gy": g[1], "estimate_t": t}]
 
     with open(path, "w") as out:
         def on_diag(msg: DiagnosticArray) -> None:
@@ -57,14 +87,14 @@ def record(path: str) -> None:
                     continue
                 rec = {"t": rospy.get_time(), "level": int(st.level), "msg": st.message,
                        **{kv.key: kv.value for kv in st.values}}
-                if truth:
-                    p = truth[0].pose.pose.position
-                    rec.update(gx=p.x, gy=p.y)
+                if estimate:
+                    rec.update(estimate[0])
                 out.write(json.dumps(rec) + "\n")
                 out.flush()
 
         rospy.init_node("amcl_trace", anonymous=True)
-        rospy.Subscriber("ground_truth/odom", Odometry, on_truth, queue_size=1)
+        rospy.Subscriber("ground_truth/odom", Odometry, on_truth, queue_size=50)
+        rospy.Subscriber("amcl_pose", PoseWithCovarianceStamped, on_pose, queue_size=10)
         rospy.Subscriber("diagnostics", DiagnosticArray, on_diag, queue_size=10)
         rospy.spin()
 

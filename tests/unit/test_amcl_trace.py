@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 spec = importlib.util.spec_from_file_location("chefbot_tools_amcl_trace", ROOT / "tools" / "amcl_trace.py")
 amcl_trace = importlib.util.module_from_spec(spec)
@@ -29,3 +31,12 @@ def test_summary_reports_injection_switches_and_errors(tmp_path: Path) -> None:
     assert "injected  120" in lines[0]
     assert "switches   1" in lines[1]
     assert "error 0.500 m" in lines[2]
+
+
+def test_truth_at_interpolates_at_the_estimates_stamp() -> None:
+    history = [(1.0, 0.0, 2.0), (1.1, 0.035, 2.0), (1.2, 0.07, 2.0)]
+    assert amcl_trace.truth_at(history, 1.15) == pytest.approx((0.0525, 2.0))
+    assert amcl_trace.truth_at(history, 1.0) == (0.0, 2.0)
+    assert amcl_trace.truth_at(history, 1.2) == (0.07, 2.0)
+    assert amcl_trace.truth_at(history, 0.9) is None and amcl_trace.truth_at(history, 1.3) is None
+    assert amcl_trace.truth_at([], 1.0) is None
