@@ -24,6 +24,8 @@ import time
 import traceback
 from pathlib import Path
 
+from procs import stop_on_sigterm  # tools/ is this script's directory
+
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench-results"
 KEYS = ("bench", "case", "metric", "ours", "reference", "reference_name", "goal", "met")
@@ -110,4 +112,5 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    stop_on_sigterm()
     sys.exit(main())

@@ -46,7 +46,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import ProcessGroup, free_port
+from procs import ProcessGroup, free_port, stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
@@ -278,6 +278,7 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    stop_on_sigterm()
     try:
         sys.exit(main())
     except KeyboardInterrupt:

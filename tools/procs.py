@@ -14,6 +14,17 @@ import time
 from pathlib import Path
 
 
+def _interrupt(signum: int, _frame) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def stop_on_sigterm() -> None:
+    """Make SIGTERM (``kill``, a CI job's timeout) behave like Ctrl-C: KeyboardInterrupt unwinds the
+    ``with ProcessGroup`` blocks, which stop roscore/roslaunch and their nodes.  Python's default for
+    SIGTERM exits at once, without unwinding: the nodes outlived the command (seen with ``make demo``)."""
+    signal.signal(signal.SIGTERM, _interrupt)
+
+
 def free_port() -> int:
     """A TCP port that is free on the loopback interface right now."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
