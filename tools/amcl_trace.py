@@ -22,6 +22,7 @@ import bisect
 import json
 import math
 import sys
+import threading
 
 
 def summary(path: str, err_over: float = 0.15) -> list[str]:
@@ -65,18 +66,21 @@ def record(path: str, keep_s: float = 10.0) -> None:
 
     history: list[tuple[float, float, float]] = []      # ground truth (t, x, y), the last keep_s seconds
     estimate: list[dict] = []                           # the last amcl_pose with the truth at its stamp
+    lock = threading.Lock()                             # rospy calls each subscriber from its own thread
 
     def on_truth(msg: Odometry) -> None:
         t, p = msg.header.stamp.to_sec(), msg.pose.pose.position
-        if history and t < history[-1][0]:
-            history.clear()                             # time jumped back (sim restarted)
-        history.append((t, p.x, p.y))
-        while history and history[0][0] < t - keep_s:
-            history.pop(0)
+        with lock:
+            if history and t < history[-1][0]:
+                history.clear()                         # time jumped back (sim restarted)
+            history.append((t, p.x, p.y))
+            while history and history[0][0] < t - keep_s:
+                history.pop(0)
 
     def on_pose(msg: PoseWithCovarianceStamped) -> None:
         t, p = msg.header.stamp.to_sec(), msg.pose.pose.position
-        g = truth_at(history, t)
+        with lock:
+            g = truth_at(history, t)
         if g is not None:
             estimate[:] = [{"x": str(p.x), "y": str(p.y), "gx": g[0], "gy": g[1], "estimate_t": t}]
 
