@@ -18,7 +18,7 @@ from chefbot_navigation.amcl.motion import (
     sample_motion,
 )
 from chefbot_navigation.amcl.resample import clusters, kld_bound, kld_count, low_variance_indices, weighted_mean_cov
-from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
+from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, points_before, select_beams
 
 NOISE = DiffMotionNoise(0.05, 0.02, 0.03, 0.01)
 
@@ -120,6 +120,57 @@ def test_end_points_inside_a_solid_obstacle_do_not_fit() -> None:
     field = LikelihoodField(OccupancyMap(GridInfo(0.05, 40, 40), data), LaserModel(sigma_hit=0.2))
     face, inside = field.fit_at(np.array([0.525]), np.array([1.0])), field.fit_at(np.array([0.825]), np.array([1.0]))
     assert face[0] == pytest.approx(1.0) and inside[0] < 0.4
+
+
+def _wall_view(wall_cells: int) -> tuple[OccupancyMap, np.ndarray, Pose2D]:
+    """A wall ``wall_cells`` thick (near face x = 2.5 m, free space beyond it too, as on a raster of a
+    building) and a fan of 41 beams from a robot at (1.0, 1.5) facing it, laser 0.1 m ahead."""
+    data = np.zeros((60, 80), np.int8)
+    data[:, 50:50 + wall_cells] = 100
+    laser = Pose2D(0.1, 0.0, 0.0)
+    ang = np.linspace(-0.5, 0.5, 41)
+    rng = (2.5 - 1.0 - laser.x) / np.cos(ang)
+    ends = np.stack([laser.x + rng * np.cos(ang), rng * np.sin(ang)], axis=1).astype(np.float32)
+    return OccupancyMap(GridInfo(0.05, 80, 60), data), ends, laser
+
+
+def _weights_along_x(field: LikelihoodField, ends: np.ndarray, before: np.ndarray | None,
+                     shifts: np.ndarray) -> np.ndarray:
+    poses = np.stack([1.0 + shifts, np.full_like(shifts, 1.5), np.zeros_like(shifts)], axis=1)
+    return field.weights(poses, ends, 8.0, before)[0]
+
+
+def test_a_pose_pushed_through_a_thick_wall_no_longer_fits() -> None:
+    occ, ends, laser = _wall_view(5)                       # 0.25 m: the bistro's walls
+    shifts = np.round(np.arange(-0.3, 0.301, 0.01), 2)
+    plain = LikelihoodField(occ, LaserModel(sigma_hit=0.1))
+    w0 = _weights_along_x(plain, ends, None, shifts)
+    truth = w0[shifts == 0.0][0]
+    # without the check the end points 0.2 m into the wall sit on its far face: a second, equal peak
+    assert w0[shifts == 0.2][0] == pytest.approx(truth, rel=0.01)
+    checked = LikelihoodField(occ, LaserModel(sigma_hit=0.1, through_dist=0.15))
+    w1 = _weights_along_x(checked, ends, points_before(ends, laser, 0.15), shifts)
+    assert w1[shifts == 0.0][0] == pytest.approx(truth)
+    assert shifts[np.argmax(w1)] == 0.0
+    assert np.all(w1[shifts >= 0.2] < 1.0 + 0.05 * (truth - 1.0))     # only the random term is left
+
+
+def test_the_through_check_leaves_thin_walls_alone() -> None:
+    occ, ends, laser = _wall_view(2)                       # a SLAM map's wall: no interior cell
+    shifts = np.round(np.arange(-0.3, 0.301, 0.05), 2)
+    plain = _weights_along_x(LikelihoodField(occ, LaserModel(sigma_hit=0.1)), ends, None, shifts)
+    checked = _weights_along_x(LikelihoodField(occ, LaserModel(sigma_hit=0.1, through_dist=0.15)), ends,
+                               points_before(ends, laser, 0.15), shifts)
+    assert checked == pytest.approx(plain)
+
+
+def test_points_before_lie_on_the_beam_and_stop_at_the_sensor() -> None:
+    laser = Pose2D(0.1, 0.2, 0.0)
+    ends = np.array([[2.1, 0.2], [0.1, 1.2], [0.15, 0.2]], np.float32)
+    got = points_before(ends, laser, 0.15)
+    assert got == pytest.approx(np.array([[1.95, 0.2], [0.1, 1.05], [0.1, 0.2]]), abs=1e-6)
+    with pytest.raises(ValueError, match="laser_through_dist"):
+        LaserModel(through_dist=-0.1)
 
 
 def test_weights_are_amcl_cubed_sum() -> None:

@@ -141,9 +141,14 @@ class ParticleFilter:
             for k, pts in enumerate(self._recent):
                 self._recent[k] = pts @ rot + shift
 
-    def weigh(self, field: LikelihoodField, endpoints: np.ndarray, range_max: float) -> float:
-        """Measurement update; returns the weighted mean beam fit (0..1) of the set."""
-        w, fit = field.weights(self.particles, endpoints, range_max)
+    def weigh(self, field: LikelihoodField, endpoints: np.ndarray, range_max: float,
+              before: np.ndarray | None = None) -> float:
+        """Measurement update; returns the weighted mean beam fit (0..1) of the set.
+
+        ``before``: the through-an-obstacle check points (``LikelihoodField.weights``); the recovery
+        scoring of recent scans uses the end points alone.
+        """
+        w, fit = field.weights(self.particles, endpoints, range_max, before)
         self._recent.append(np.asarray(endpoints, dtype=np.float32))
         self._range_max = range_max
         # recovery statistic: mean pz³ per beam under the prior weights (amcl sums over beams, which

@@ -29,7 +29,7 @@ from chefbot_common.geometry import Pose2D, map_to_odom, wrap_angle
 from chefbot_common.grid import OccupancyMap
 from chefbot_navigation.amcl.filter import FilterConfig, ParticleFilter
 from chefbot_navigation.amcl.motion import DiffMotionNoise
-from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
+from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, points_before, select_beams
 
 OK, WARN, ERROR = 0, 1, 2   # diagnostic_msgs/DiagnosticStatus levels
 
@@ -61,6 +61,8 @@ class AmclConfig:
     laser_sigma_hit: float = 0.2        # m
     laser_likelihood_max_dist: float = 2.0  # m
     occupied_threshold: int = 65        # ours: map values >= this are obstacles
+    laser_through_dist: float = 0.0     # ours: m; a beam whose point this far before its end lies inside an
+                                        # obstacle went through it (sensor.py); 0: off, as amcl
     initial_pose_x: float = 0.0         # m
     initial_pose_y: float = 0.0         # m
     initial_pose_a: float = 0.0         # rad
@@ -130,7 +132,7 @@ class AmclConfig:
     def laser_model(self) -> LaserModel:
         """The likelihood-field laser model's settings."""
         return LaserModel(self.laser_z_hit, self.laser_z_rand, self.laser_sigma_hit,
-                          self.laser_likelihood_max_dist, self.occupied_threshold)
+                          self.laser_likelihood_max_dist, self.occupied_threshold, self.laser_through_dist)
 
     def initial_cov(self) -> np.ndarray:
         """Covariance (x m^2, y m^2, yaw rad^2) of the initial pose as a 3 x 3 array."""
@@ -260,7 +262,9 @@ class Amcl:
                 pose, cov, _ = self.pf.estimate()
                 self.estimate = Estimate(pose, cov, t)
                 raise ValueError("scan has no valid beam (all NaN/inf or out of range)")
-            self.pf.weigh(self.field, endpoints, rmax)
+            through = cfg.laser_through_dist
+            before = points_before(endpoints, laser_pose, through) if through > 0 else None
+            self.pf.weigh(self.field, endpoints, rmax, before)
             pose, cov, _ = self.pf.estimate()
             self.estimate = Estimate(pose, cov, t)
             self.updates += 1
