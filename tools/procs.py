@@ -127,6 +127,29 @@ def kill_group(pgid: int, grace_int: float = 5.0, grace_term: float = 3.0) -> No
             time.sleep(0.05)
 
 
+def run_captured(cmd: list[str], timeout: float, env: dict | None = None) -> subprocess.CompletedProcess:
+    """``subprocess.run(cmd, capture_output=True, text=True, timeout=...)`` in a session of its own,
+    for a helper that starts ROS itself (a benchmark's ``--measure`` child).
+
+    On a timeout or an interrupt (Ctrl-C; SIGTERM with :func:`stop_on_sigterm`) the child's group
+    and everything it started are stopped with :func:`kill_group` -- SIGINT first, so the child
+    unwinds its own ``with ProcessGroup`` blocks -- and the exception propagates.  ``subprocess.run``
+    would SIGKILL the child alone and leave its roscore running.
+    """
+    proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except BaseException:
+        kill_group(proc.pid)
+        try:
+            proc.communicate(timeout=5)
+        except (subprocess.TimeoutExpired, ValueError, OSError):
+            pass
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
 class ProcessGroup:
     """A command started in its own session, stopped (with all its children) on exit.
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
@@ -119,7 +118,9 @@ def measure(trials: int, event_driven: bool = True) -> dict:
 def latencies(trials: int, event_driven: bool) -> list[float]:
     """Sorted latencies (ms) of ``trials`` cmd_vel steps, measured in a fresh subprocess."""
     cmd = [sys.executable, __file__, "--measure", str(trials), "event" if event_driven else "timer"]
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=600, start_new_session=True)
+    sys.path.insert(0, str(ROOT / "tools"))
+    from procs import run_captured
+    out = run_captured(cmd, timeout=600)
     if out.returncode != 0:
         raise RuntimeError(f"latency bench failed:\n{out.stderr[-2000:]}")
     lat = sorted(json.loads(out.stdout.strip().splitlines()[-1])["latencies_ms"])
@@ -147,6 +148,9 @@ def run(quick: bool = False) -> list[dict]:
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--measure":
+        sys.path.insert(0, str(ROOT / "tools"))
+        from procs import stop_on_sigterm
+        stop_on_sigterm()
         print(json.dumps(measure(int(sys.argv[2]), event_driven=sys.argv[3] == "event")))
     else:
         for r in run(quick="--quick" in sys.argv):

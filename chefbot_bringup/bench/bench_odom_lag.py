@@ -23,7 +23,6 @@ import bisect
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -176,7 +175,9 @@ def lag(drive: str, w: float, turns: int = 2, use_imu: bool = True) -> dict:
     """Measure in a fresh subprocess; returns the :func:`analyse` dict plus drive, w, use_imu, w_measured."""
     cmd = [sys.executable, __file__, "--measure", "--drive", drive, "--w", str(w), "--turns", str(turns)]
     cmd += [] if use_imu else ["--no-imu"]
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=600, start_new_session=True)
+    sys.path.insert(0, str(ROOT / "tools"))
+    from procs import run_captured
+    out = run_captured(cmd, timeout=600)
     if out.returncode != 0:
         raise RuntimeError(f"odometry lag bench failed:\n{out.stderr[-3000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -206,6 +207,9 @@ if __name__ == "__main__":
     ap.add_argument("--no-imu", action="store_true", help="heading from the wheels (default: the IMU, as make demo)")
     a = ap.parse_args()
     if a.measure:
+        sys.path.insert(0, str(ROOT / "tools"))
+        from procs import stop_on_sigterm
+        stop_on_sigterm()
         print(json.dumps(measure(a.drive, a.w, a.turns, not a.no_imu)))
     else:
         print(json.dumps(lag(a.drive, a.w, a.turns, not a.no_imu), indent=1))

@@ -165,8 +165,10 @@ def measure(gated: bool, out: Path) -> None:
 def _case(gated: bool) -> dict:
     with tempfile.TemporaryDirectory(prefix="chefbot_bench_amcl_live_out_") as d:
         out = Path(d) / "r.json"
-        proc = subprocess.run([sys.executable, __file__, "--measure", "gated" if gated else "every-scan", str(out)],
-                              capture_output=True, text=True, timeout=1200, start_new_session=True)
+        sys.path.insert(0, str(ROOT / "tools"))
+        from procs import run_captured
+        proc = run_captured([sys.executable, __file__, "--measure", "gated" if gated else "every-scan", str(out)],
+                            timeout=1200)
         if not out.exists():
             raise RuntimeError(f"bench_amcl_live produced nothing (exit {proc.returncode}):\n{proc.stderr[-2000:]}")
         return json.loads(out.read_text())
@@ -207,6 +209,9 @@ def run(quick: bool = False) -> list[dict]:
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--measure":
+        sys.path.insert(0, str(ROOT / "tools"))
+        from procs import stop_on_sigterm
+        stop_on_sigterm()
         measure(gated=sys.argv[2] == "gated", out=Path(sys.argv[3]))
     else:
         for r in run(quick="--quick" in sys.argv):
