@@ -155,6 +155,18 @@ def test_a_pose_pushed_through_a_thick_wall_no_longer_fits() -> None:
     assert np.all(w1[shifts >= 0.2] < 1.0 + 0.05 * (truth - 1.0))     # only the random term is left
 
 
+def test_the_reported_fit_ignores_the_through_check() -> None:
+    # the mean fit gates recovery injection: beams zeroed at the true pose (a beam grazing a table
+    # against a wall) dropped it below recovery_max_fit and look-alikes were injected (cafe, live)
+    occ, ends, laser = _wall_view(5)
+    poses = np.array([[1.0, 1.5, 0.0], [1.2, 1.5, 0.0]])
+    w0, fit0 = LikelihoodField(occ, LaserModel(sigma_hit=0.1)).weights(poses, ends, 8.0)
+    w1, fit1 = LikelihoodField(occ, LaserModel(sigma_hit=0.1, through_dist=0.15)).weights(
+        poses, ends, 8.0, points_before(ends, laser, 0.15))
+    assert fit1 == pytest.approx(fit0)
+    assert w1[1] < w0[1] - 0.5 * (w0[1] - 1.0)
+
+
 def test_the_through_check_leaves_thin_walls_alone() -> None:
     occ, ends, laser = _wall_view(2)                       # a SLAM map's wall: no interior cell
     shifts = np.round(np.arange(-0.3, 0.301, 0.05), 2)
