@@ -26,8 +26,9 @@ a pose shifted into the wall about as well as the true pose: in the bistro (wall
 walls) the estimate sat 0.1-0.17 m inside the room's walls along a whole route.  With
 ``through_dist`` > 0 the point that far before each end point (towards the sensor) is looked up
 too; if it lies in an obstacle's *interior* (an occupied cell whose 8 neighbours are all occupied)
-the beam passed through a wall from that particle's pose, and its ``fit`` counts as 0 (the beam is
-then only the random term).  Interior cells exist only in obstacles over two cells thick, so a
+the beam passed through a wall from that particle's pose, and its ``fit`` counts as 0 in the
+particle's weight (the beam is then only the random term; the mean fit reported for the recovery
+gate leaves the check out, see ``weights``).  Interior cells exist only in obstacles over two cells thick, so a
 map with thin walls (SLAM's) is scored exactly as before.
 
 Beams are chosen as amcl does — evenly spaced up to ``max_beams`` — but among
