@@ -25,6 +25,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+from procs import ProcessGroup, free_port, run_captured, stop_on_sigterm  # noqa: E402  (stdlib only)
+
 TIMER_BOUND_MS = (1 / 50 + 1 / 30 + 1 / 30) * 1000   # twist_to_motors, pid_velocity, launchpad_node periods
 # one motor command "s -1023 -1023 *XX\r" on the wire: 19 bytes x 10 bits at 115 200 baud
 SERIAL_FLOOR_MS = 19 * 10 / 115200 * 1000
@@ -32,11 +35,9 @@ GOAL_MS = {"median": 10.0, "p90": 15.0}
 
 
 def measure(trials: int, event_driven: bool = True) -> dict:
-    sys.path.insert(0, str(ROOT / "tools"))
     import rosgraph
     import rospy
     from geometry_msgs.msg import Twist
-    from procs import ProcessGroup, free_port
 
     from chefbot_firmware.virtual_board import VirtualBoard
 
@@ -118,8 +119,6 @@ def measure(trials: int, event_driven: bool = True) -> dict:
 def latencies(trials: int, event_driven: bool) -> list[float]:
     """Sorted latencies (ms) of ``trials`` cmd_vel steps, measured in a fresh subprocess."""
     cmd = [sys.executable, __file__, "--measure", str(trials), "event" if event_driven else "timer"]
-    sys.path.insert(0, str(ROOT / "tools"))
-    from procs import run_captured
     out = run_captured(cmd, timeout=600)
     if out.returncode != 0:
         raise RuntimeError(f"latency bench failed:\n{out.stderr[-2000:]}")
@@ -148,8 +147,6 @@ def run(quick: bool = False) -> list[dict]:
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--measure":
-        sys.path.insert(0, str(ROOT / "tools"))
-        from procs import stop_on_sigterm
         stop_on_sigterm()
         print(json.dumps(measure(int(sys.argv[2]), event_driven=sys.argv[3] == "event")))
     else:

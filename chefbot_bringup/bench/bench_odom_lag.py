@@ -31,6 +31,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+from procs import ProcessGroup, free_port, run_captured, stop_on_sigterm  # noqa: E402  (stdlib only)
+
 GOAL_LAG_S = 0.010     # tf odom -> base_footprint no more than 10 ms behind the robot
 
 
@@ -75,13 +78,11 @@ def fit_lag(gt_t: np.ndarray, gt_yaw: np.ndarray, seg: np.ndarray) -> float:
 
 
 def measure(drive: str, w: float, turns: int, use_imu: bool = True) -> dict:
-    sys.path.insert(0, str(ROOT / "tools"))
     import rosgraph
     import rospy
     import tf2_ros
     from geometry_msgs.msg import Twist
     from nav_msgs.msg import Odometry
-    from procs import ProcessGroup, free_port
     from sensor_msgs.msg import Imu, LaserScan
 
     port = free_port()
@@ -175,8 +176,6 @@ def lag(drive: str, w: float, turns: int = 2, use_imu: bool = True) -> dict:
     """Measure in a fresh subprocess; returns the :func:`analyse` dict plus drive, w, use_imu, w_measured."""
     cmd = [sys.executable, __file__, "--measure", "--drive", drive, "--w", str(w), "--turns", str(turns)]
     cmd += [] if use_imu else ["--no-imu"]
-    sys.path.insert(0, str(ROOT / "tools"))
-    from procs import run_captured
     out = run_captured(cmd, timeout=600)
     if out.returncode != 0:
         raise RuntimeError(f"odometry lag bench failed:\n{out.stderr[-3000:]}")
@@ -207,8 +206,6 @@ if __name__ == "__main__":
     ap.add_argument("--no-imu", action="store_true", help="heading from the wheels (default: the IMU, as make demo)")
     a = ap.parse_args()
     if a.measure:
-        sys.path.insert(0, str(ROOT / "tools"))
-        from procs import stop_on_sigterm
         stop_on_sigterm()
         print(json.dumps(measure(a.drive, a.w, a.turns, not a.no_imu)))
     else:

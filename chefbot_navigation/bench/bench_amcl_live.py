@@ -41,6 +41,9 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+from procs import ProcessGroup, free_port, run_captured, stop_on_sigterm  # noqa: E402  (stdlib only)
+
 PARAMS = ROOT / "chefbot_navigation" / "param" / "amcl.yaml"
 TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
 ROUTE = ["table_1", "table_5", "home"]
@@ -49,13 +52,11 @@ GOAL_UPDATES = 10.0     # updates/s sustained (issue 12)
 
 def measure(gated: bool, out: Path) -> None:
     """Run the stack once and write the figures to ``out`` (JSON)."""
-    sys.path.insert(0, str(ROOT / "tools"))
     import rosgraph
     import rospy
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseWithCovarianceStamped
     from nav_msgs.msg import Odometry
-    from procs import ProcessGroup, free_port
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import LaserScan
 
@@ -165,8 +166,6 @@ def measure(gated: bool, out: Path) -> None:
 def _case(gated: bool) -> dict:
     with tempfile.TemporaryDirectory(prefix="chefbot_bench_amcl_live_out_") as d:
         out = Path(d) / "r.json"
-        sys.path.insert(0, str(ROOT / "tools"))
-        from procs import run_captured
         proc = run_captured([sys.executable, __file__, "--measure", "gated" if gated else "every-scan", str(out)],
                             timeout=1200)
         if not out.exists():
@@ -209,8 +208,6 @@ def run(quick: bool = False) -> list[dict]:
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--measure":
-        sys.path.insert(0, str(ROOT / "tools"))
-        from procs import stop_on_sigterm
         stop_on_sigterm()
         measure(gated=sys.argv[2] == "gated", out=Path(sys.argv[3]))
     else:
