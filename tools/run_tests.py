@@ -1,18 +1,24 @@
 #!/usr/bin/env python3
 """Run every test of the workspace and print one closing line of totals.
 
-Runners, in order:
-  1. pytest over every ``*/test/unit`` directory and ``tests/unit`` (no master),
-     and ``make -C firmware test`` with a bounded fuzz run when the firmware has
-     them: these have no timing in them, so they run side by side, as many at
-     once as the machine has cores (CHEFBOT_TEST_JOBS overrides);
-  2. every rostest file (``*/test/*.test`` and ``tests/*.test``; not
-     ``test/manual/``), each with its own master on a free port (rostest's
-     default), in its own process group that is killed afterwards.  Those that
-     run in sim time (the test or a launch file it includes mentions
-     ``use_sim_time``: a simulator paced against the wall clock) run one at a
-     time, nothing else beside them; the others (error handling, the serial
-     driver on a pty, map_server ...) run in stage 1's pool.
+Runners:
+  1. ``make -C firmware test`` with a bounded fuzz run, and the rostest files
+     (``*/test/*.test`` and ``tests/*.test``; not ``test/manual/``) that run in
+     no sim time (error handling, the serial driver on a pty, map_server ...):
+     side by side, as many at once as the machine has cores
+     (CHEFBOT_TEST_JOBS overrides);
+  2. the rostests that run in sim time (the test or a launch file it includes
+     mentions ``use_sim_time``: a simulator paced against the wall clock), one
+     at a time;
+  3. pytest over every ``*/test/unit`` directory and ``tests/unit``: from the
+     start, one directory at a time at the lowest CPU priority (``nice 19``)
+     beside stages 1 and 2.  A simulator rostest keeps about one core of two
+     busy; the pytest runs take the rest, and the scheduler gives the
+     simulator's processes the CPU whenever they want it.  Without a sim-time
+     rostest to run beside (``--only unit``, ``-k`` selecting none), they run
+     in stage 1's pool at normal priority instead.
+Each rostest gets its own master on a free port (rostest's default) and its
+own process group, killed afterwards.
 
 Every child gets the environment variable CHEFBOT_TEST_RUN=<token>; at the end
 any process still carrying it is reported as a leak, killed, and counted as a
@@ -46,6 +52,7 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "build" / "test_results"
 ROSTEST_TIMEOUT_S = float(os.environ.get("CHEFBOT_ROSTEST_TIMEOUT", "600"))
 FUZZ_SECONDS = os.environ.get("FUZZ_SECONDS", "60")
+UNIT_NICE = 19      # stage 3's CPU priority beside the simulator rostests (19 = the lowest)
 SKIP_DIRS = {".git", ".venv", "build", "devel", "install", "node_modules"}
 
 
@@ -108,6 +115,32 @@ def junit_totals(path: Path, label: str) -> Totals:
     return t
 
 
+_LIVE: set[int] = set()     # the runners' children's process groups, for an interrupt to stop
+_LIVE_LOCK = threading.Lock()
+
+
+def spawn(cmd: list[str], **kwargs) -> subprocess.Popen:
+    """Popen in a new session, its group recorded until ``forget``."""
+    proc = subprocess.Popen(cmd, start_new_session=True, **kwargs)
+    with _LIVE_LOCK:
+        _LIVE.add(proc.pid)
+    return proc
+
+
+def forget(proc: subprocess.Popen) -> None:
+    with _LIVE_LOCK:
+        _LIVE.discard(proc.pid)
+
+
+def stop_children() -> None:
+    """Stop every running child's group (an interrupt or SIGTERM: the worker threads cannot be
+    interrupted, but they return once their child is gone)."""
+    with _LIVE_LOCK:
+        groups = sorted(_LIVE)
+    for pgid in groups:
+        kill_group(pgid, grace_int=2.0, grace_term=2.0)
+
+
 def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Path = ROOT) -> tuple[int, bool]:
     """Run cmd in a new session; stream output to log_path; kill the whole group afterwards.
 
@@ -115,8 +148,7 @@ def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Pa
     """
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, "wb") as out:
-        proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, start_new_session=True)
+        proc = spawn(cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         timed_out = False
         try:
             rc = proc.wait(timeout=timeout)
@@ -129,6 +161,7 @@ def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Pa
         kill_group(proc.pid)
         if timed_out:
             proc.wait()
+        forget(proc)
     return rc, timed_out
 
 
@@ -221,8 +254,8 @@ def unit_jobs() -> int:
     return max(1, jobs or os.cpu_count() or 1)
 
 
-def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
-    """One pytest run in one unit-test directory.
+def pytest_dir(env: dict, d: Path, pattern: str | None, nice: int = 0) -> Totals:
+    """One pytest run in one unit-test directory (at CPU priority ``nice``).
 
     Separate runs, each with the directory as rootdir and cwd: with one run over
     several directories the rootdir becomes the repository top, and pytest's
@@ -234,13 +267,16 @@ def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
     xml.parent.mkdir(parents=True, exist_ok=True)
     if xml.exists():
         xml.unlink()
-    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
-           "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
+    cmd = ["nice", "-n", str(nice)] if nice else []
+    cmd += [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
+            "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
     if pattern:
         cmd += ["-k", pattern]
     t0 = time.monotonic()
-    proc = subprocess.run(cmd, cwd=d, env=dict(env, QT_QPA_PLATFORM="offscreen"), start_new_session=True,
-                          capture_output=True, text=True)
+    proc = spawn(cmd, cwd=d, env=dict(env, QT_QPA_PLATFORM="offscreen"), stdin=subprocess.DEVNULL,
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = proc.communicate()
+    forget(proc)
     if proc.returncode == 5:  # pytest: no tests collected (e.g. -k selected none here)
         return Totals()
     if not xml.exists():
@@ -251,32 +287,41 @@ def pytest_dir(env: dict, d: Path, pattern: str | None) -> Totals:
              f"({time.monotonic() - t0:.1f} s)"]
     lines += [f"[test]   skipped {skip}" for skip in t.skips]
     if t.failed or proc.returncode not in (0, 1):
-        lines += [proc.stdout[-6000:], proc.stderr[-3000:]]
+        lines += [stdout[-6000:], stderr[-3000:]]
     show("\n".join(lines))
     return t
 
 
-def run_unit_stage(env: dict, pattern: str | None, unit: bool, firmware: bool,
-                   rostests: list[tuple[str, Path]]) -> Totals:
-    """The pytest directories, the firmware's tests and the rostests that run in no sim time,
-    side by side (none of them is paced against the wall clock)."""
-    total = Totals()
+def sorted_unit_dirs(unit: bool) -> list[Path]:
+    """The pytest directories, the one with the most test code first (so a pool does not end on one long job)."""
     dirs = unit_dirs() if unit else []
     if unit and not dirs:
         log("pytest: no unit test directories")
-    # the longest first (the firmware's fuzz, then the directories with the most test code), so
-    # the pool does not end on one long job
     dirs.sort(key=lambda d: -sum(f.stat().st_size for f in d.glob("test_*.py")))
+    return dirs
+
+
+def run_side_stage(env: dict, firmware: bool, rostests: list[tuple[str, Path]],
+                   dirs: list[Path], pattern: str | None) -> Totals:
+    """Stage 1: the firmware's tests and the rostests that run in no sim time (and, when
+    nothing runs beside stage 2, the pytest directories), side by side: none of them is paced
+    against the wall clock."""
+    total = Totals()
     jobs = unit_jobs()
-    if unit or firmware or rostests:
-        log(f"unit stage: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'}"
+    if firmware or rostests or dirs:
+        log(f"stage 1: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'}"
             f"{' + firmware' if firmware else ''} + {len(rostests)} rostest(s) in no sim time, {jobs} at a time")
     with ThreadPoolExecutor(max_workers=jobs) as pool:
         futures = ([pool.submit(run_firmware, env)] if firmware else [])
         futures += [pool.submit(pytest_dir, env, d, pattern) for d in dirs]
         futures += [pool.submit(run_rostest, env, pkg, test) for pkg, test in rostests]
-        for fut in futures:
-            total.add(fut.result())
+        try:
+            for fut in futures:
+                total.add(fut.result())
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            stop_children()
+            raise
     return total
 
 
@@ -412,9 +457,31 @@ def main() -> int:
     t0 = time.monotonic()
     total = Totals()
     timed, untimed = select_rostests(args.pattern) if "rostest" in only else ([], [])
-    total.add(run_unit_stage(env, args.pattern, "unit" in only, "firmware" in only and not args.pattern, untimed))
-    for pkg, test in timed:     # one at a time: each paces a simulator against the wall clock
-        total.add(run_rostest(env, pkg, test))
+    firmware = "firmware" in only and not args.pattern
+    dirs = sorted_unit_dirs("unit" in only)
+    background, unit_futures = None, []
+    if dirs and timed:
+        # stage 3 beside stages 1 and 2: one pytest directory at a time, at the lowest priority
+        log(f"stage 3: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'} one at a time at "
+            f"nice {UNIT_NICE}, beside stages 1 and 2")
+        background = ThreadPoolExecutor(max_workers=1)
+        unit_futures = [background.submit(pytest_dir, env, d, args.pattern, UNIT_NICE) for d in dirs]
+        dirs = []
+    try:
+        total.add(run_side_stage(env, firmware, untimed, dirs, args.pattern))
+        if timed:
+            log(f"stage 2: {len(timed)} rostest(s) in sim time, one at a time")
+        for pkg, test in timed:     # one at a time: each paces a simulator against the wall clock
+            total.add(run_rostest(env, pkg, test))
+        for fut in unit_futures:
+            total.add(fut.result())
+    except BaseException:
+        if background is not None:
+            background.shutdown(wait=False, cancel_futures=True)
+        stop_children()
+        raise
+    if background is not None:
+        background.shutdown()
 
     time.sleep(0.5)
     strays = leaked(token)

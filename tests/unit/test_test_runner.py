@@ -111,6 +111,32 @@ def test_kill_group_stops_descendants_in_their_own_session() -> None:
     assert procs._survivors(tree) == []
 
 
+def test_stop_children_stops_every_spawned_group_and_its_descendants() -> None:
+    """An interrupt (Ctrl-C, a CI job's SIGTERM) cannot stop the runner's worker threads; it stops
+    their children instead, each with what it started, and the threads then return by themselves."""
+    script = "setsid bash -c \"trap '' INT; sleep 60\" & sleep 60 & wait"
+    kids = [run_tests.spawn(["bash", "-c", script]) for _ in range(2)]
+    trees: dict[int, str] = {}
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and len(trees) < 6:   # bash, setsid'd bash/sleep, sleep: x2
+        trees = {pid: c for k in kids for pid, c in procs.group_tree(k.pid).items()}
+        time.sleep(0.05)
+    assert len(trees) >= 6, trees
+    done = run_tests.spawn(["true"])
+    done.wait(timeout=5)
+    run_tests.forget(done)                       # a finished child is not stopped again
+    assert {k.pid for k in kids} <= run_tests._LIVE and done.pid not in run_tests._LIVE
+    try:
+        run_tests.stop_children()
+        for k in kids:
+            k.wait(timeout=5)
+        assert procs._survivors(trees) == []
+    finally:
+        for k in kids:
+            procs.kill_group(k.pid, grace_int=0.1, grace_term=0.1)
+            run_tests.forget(k)
+
+
 def test_free_port_is_bindable() -> None:
     import socket
     port = procs.free_port()
