@@ -2,21 +2,21 @@
 """Run every test of the workspace and print one closing line of totals.
 
 Runners:
-  1. ``make -C firmware test`` with a bounded fuzz run, and the rostest files
-     (``*/test/*.test`` and ``tests/*.test``; not ``test/manual/``) that run in
-     no sim time (error handling, the serial driver on a pty, map_server ...):
-     side by side, as many at once as the machine has cores
-     (CHEFBOT_TEST_JOBS overrides);
+  1. the rostest files (``*/test/*.test`` and ``tests/*.test``; not
+     ``test/manual/``) that run in no sim time (error handling, the serial
+     driver on a pty, map_server ...): side by side, as many at once as the
+     machine has cores (CHEFBOT_TEST_JOBS overrides);
   2. the rostests that run in sim time (the test or a launch file it includes
      mentions ``use_sim_time``: a simulator paced against the wall clock), one
      at a time;
-  3. pytest over every ``*/test/unit`` directory and ``tests/unit``: from the
-     start, one directory at a time at the lowest CPU priority (``nice 19``)
-     beside stages 1 and 2.  A simulator rostest keeps about one core of two
-     busy; the pytest runs take the rest, and the scheduler gives the
-     simulator's processes the CPU whenever they want it.  Without a sim-time
-     rostest to run beside (``--only unit``, ``-k`` selecting none), they run
-     in stage 1's pool at normal priority instead.
+  3. ``make -C firmware test`` with a bounded fuzz run, then pytest over every
+     ``*/test/unit`` directory and ``tests/unit``: from the start, one at a
+     time at the lowest CPU priority (``nice 19``) beside stages 1 and 2.
+     None of them is timed.  A simulator rostest keeps about one core of two
+     busy; these take the rest, and the scheduler gives the simulator's
+     processes the CPU whenever they want it.  Without a sim-time rostest to
+     run beside (``--only unit``, ``-k`` selecting none), they run in stage 1's
+     pool at normal priority instead.
 Each rostest gets its own master on a free port (rostest's default) and its
 own process group, killed afterwards.
 
@@ -139,6 +139,11 @@ def stop_children() -> None:
         groups = sorted(_LIVE)
     for pgid in groups:
         kill_group(pgid, grace_int=2.0, grace_term=2.0)
+
+
+def niced(cmd: list[str], nice: int) -> list[str]:
+    """cmd run at CPU priority ``nice`` (0: as it is)."""
+    return ["nice", "-n", str(nice), *cmd] if nice else cmd
 
 
 def run_group(cmd: list[str], env: dict, timeout: float, log_path: Path, cwd: Path = ROOT) -> tuple[int, bool]:
@@ -267,9 +272,8 @@ def pytest_dir(env: dict, d: Path, pattern: str | None, nice: int = 0) -> Totals
     xml.parent.mkdir(parents=True, exist_ok=True)
     if xml.exists():
         xml.unlink()
-    cmd = ["nice", "-n", str(nice)] if nice else []
-    cmd += [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
-            "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)]
+    cmd = niced([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--import-mode=importlib",
+                 "--rootdir", str(d), f"--junitxml={xml}", "-o", "junit_family=xunit2", str(d)], nice)
     if pattern:
         cmd += ["-k", pattern]
     t0 = time.monotonic()
@@ -328,7 +332,8 @@ def run_side_stage(env: dict, firmware: bool, rostests: list[tuple[str, Path]],
 _COUNT_LINE = re.compile(r"(\d+) passed, (\d+) failed(?:, (\d+) skipped)?\s*$")
 
 
-def run_firmware(env: dict) -> Totals:
+def run_firmware(env: dict, nice: int = 0) -> Totals:
+    """The firmware's host unit tests, then a fuzz run of FUZZ_SECONDS (at CPU priority ``nice``)."""
     fw = ROOT / "firmware"
     t = Totals()
     if not (fw / "Makefile").exists():
@@ -339,7 +344,7 @@ def run_firmware(env: dict) -> Totals:
     env = {k: v for k, v in env.items() if k != "LD_PRELOAD"}
     log("firmware: host unit tests")
     logf = RESULTS / "firmware_test.log"
-    rc, to = run_group(["make", "-s", "-C", str(fw), "test"], env, 900, logf)
+    rc, to = run_group(niced(["make", "-s", "-C", str(fw), "test"], nice), env, 900, logf)
     counts = None
     for line in logf.read_text(errors="replace").splitlines():
         m = _COUNT_LINE.search(line)
@@ -364,7 +369,7 @@ def run_firmware(env: dict) -> Totals:
         return t
     log(f"firmware: fuzz for {FUZZ_SECONDS} s")
     logf = RESULTS / "firmware_fuzz.log"
-    rc, to = run_group(["make", "-s", "-C", str(fw), "fuzz", f"FUZZ_SECONDS={FUZZ_SECONDS}"], env,
+    rc, to = run_group(niced(["make", "-s", "-C", str(fw), "fuzz", f"FUZZ_SECONDS={FUZZ_SECONDS}"], nice), env,
                        float(FUZZ_SECONDS) * 4 + 300, logf)
     if rc == 0:
         t.passed += 1
@@ -460,13 +465,15 @@ def main() -> int:
     firmware = "firmware" in only and not args.pattern
     dirs = sorted_unit_dirs("unit" in only)
     background, unit_futures = None, []
-    if dirs and timed:
-        # stage 3 beside stages 1 and 2: one pytest directory at a time, at the lowest priority
-        log(f"stage 3: {len(dirs)} pytest director{'y' if len(dirs) == 1 else 'ies'} one at a time at "
-            f"nice {UNIT_NICE}, beside stages 1 and 2")
+    if (dirs or firmware) and timed:
+        # stage 3 beside stages 1 and 2: the firmware, then one pytest directory at a time, at the
+        # lowest priority
+        log(f"stage 3: {'firmware + ' if firmware else ''}{len(dirs)} pytest director"
+            f"{'y' if len(dirs) == 1 else 'ies'} one at a time at nice {UNIT_NICE}, beside stages 1 and 2")
         background = ThreadPoolExecutor(max_workers=1)
-        unit_futures = [background.submit(pytest_dir, env, d, args.pattern, UNIT_NICE) for d in dirs]
-        dirs = []
+        unit_futures = [background.submit(run_firmware, env, UNIT_NICE)] if firmware else []
+        unit_futures += [background.submit(pytest_dir, env, d, args.pattern, UNIT_NICE) for d in dirs]
+        dirs, firmware = [], False
     try:
         total.add(run_side_stage(env, firmware, untimed, dirs, args.pattern))
         if timed:
