@@ -50,11 +50,11 @@ from procs import ProcessGroup, free_port, stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
-TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
 # the default site: the hotel on the map our SLAM made exploring it (make demo SLAM=1), with the tables
 # carried onto it by align_tables; MAP=/TABLES_FILE=/WORLD= choose another
-DEFAULT_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map_explored.yaml"
-DEFAULT_TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables_explored.yaml"
+DEFAULT_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+DEFAULT_TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
 XY_TOL, YAW_TOL = 0.05, 0.05          # m, rad: the acceptance tolerance against ground truth
 STARTUP_TIMEOUT_S = 180.0             # wall time for the sim + navigation to come up
 LEG_TIMEOUT_S = 240.0                 # wall time per leg before giving up

@@ -52,8 +52,8 @@ from slam_workflow import (
 
 LOG_DIR = Path(os.environ.get("CHEFBOT_DEMO_SLAM_DIR") or ROOT / "build" / "demo_slam")   # bench_explore: its own
 WORLD = ROOT / "chefbot_sim" / "worlds" / "hotel.yaml"
-TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
-TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
+TABLES_FILE = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
 XY_TOL, YAW_TOL = 0.10, 0.10          # m, rad: delivered, by ground truth
 EXPLORE_TIMEOUT_S = 2400.0            # wall s for the exploration (explore's own max_duration is 900 s sim)
 LEG_TIMEOUT_S = 240.0                 # wall s per delivery leg

@@ -89,7 +89,7 @@ def update_cost(n: int, repeats: int) -> float:
     finally:
         rig.sim.close()
     amcl = Amcl(amcl_config(min_particles=n, max_particles=n, initial_cov_xx=0.05, initial_cov_yy=0.05))
-    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_world_map.yaml"))
     rng = np.random.default_rng(0)
     times = []
     odom = Pose2D()
@@ -121,13 +121,14 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
     error is back within 0.25 m / 0.25 rad and stays there for 2 s.
     """
     from chefbot_common.geometry import Pose2D as WorldPose
-    tables = {k: Pose2D(**v) for k, v in yaml.safe_load((MAPS / "hotel_tables.yaml").read_text())["poses"].items()}
+    poses = yaml.safe_load((MAPS / "hotel_world_tables.yaml").read_text())["poses"]
+    tables = {k: Pose2D(**v) for k, v in poses.items()}
     home = tables["home"]
     rig = SimRig(home, seed)
     # the sim spawns the robot exactly at home: initial covariance as navigation_demo.launch gives it
     amcl = Amcl(amcl_config(initial_pose_x=home.x, initial_pose_y=home.y, initial_pose_a=home.yaw, seed=seed,
                             initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01, **(overrides or {})))
-    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_world_map.yaml"))
     errors, costs, legs = [], [], route(tables)
     if quick:
         legs = legs[:6]
@@ -225,7 +226,7 @@ def global_convergence(seed: int = 0, limit: float = 60.0) -> float:
     is within 0.25 m / 0.25 rad and stays there for 2 s (inf if not within ``limit``)."""
     rig = SimRig(Pose2D(0.0, 0.0, 0.0), seed)
     amcl = Amcl(amcl_config(seed=seed))
-    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_world_map.yaml"))
     amcl.global_localization()
     try:
         return _turn_until_localized(rig, amcl, limit)
@@ -239,7 +240,7 @@ def kidnap_turning(seed: int = 0, limit: float = 60.0, overrides: dict | None = 
     rig = SimRig(Pose2D(0.0, 0.0, 0.0), seed)
     amcl = Amcl(amcl_config(seed=seed, initial_cov_xx=0.01, initial_cov_yy=0.01, initial_cov_aa=0.01,
                             **(overrides or {})))
-    amcl.set_map(load_map(MAPS / "hotel_map.yaml"))
+    amcl.set_map(load_map(MAPS / "hotel_world_map.yaml"))
     try:
         return _turn_until_localized(rig, amcl, limit, kidnap_after=8.0)   # tracking for 8 s first
     finally:

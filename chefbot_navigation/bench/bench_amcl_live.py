@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 from procs import ProcessGroup, free_port, run_captured, stop_on_sigterm  # noqa: E402  (stdlib only)
 
 PARAMS = ROOT / "chefbot_navigation" / "param" / "amcl.yaml"
-TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
 ROUTE = ["table_1", "table_5", "home"]
 GOAL_UPDATES = 10.0     # updates/s sustained (issue 12)
 
@@ -71,6 +71,7 @@ def measure(gated: bool, out: Path) -> None:
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOME=str(tmp / "ros_home"))
     os.environ.update(ROS_MASTER_URI=env["ROS_MASTER_URI"], ROS_HOME=env["ROS_HOME"])
     cmd = ["roslaunch", "-p", str(port), "chefbot_sim", "navigation_demo.launch", "drive:=firmware", "use_imu:=true",
+           f"map_file:={ROOT / 'chefbot_navigation' / 'maps' / 'hotel_world_map.yaml'}",   # TABLES' frame
            f"pty_link:={tmp / 'launchpad'}", "real_time_factor:=1", f"amcl_params:={tmp / 'amcl.yaml'}"]
     lock = threading.Lock()
     truth: list[tuple[float, float, float, float]] = []    # t sim, x, y, yaw

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Global planner benchmark: time per plan and path cost against exact Dijkstra.
 
-Cases: the hotel costmap (chefbot_navigation/maps/hotel_map.yaml, home -> every
+Cases: the hotel costmap (chefbot_navigation/maps/hotel_world_map.yaml, home -> every
 table) and a generated 1200 x 1200 office map (1.44 M cells, random
 start/goal pairs in free space).  The reference is an exact Dijkstra on the
 same 8-connected graph with the same edge costs
@@ -35,8 +35,8 @@ from chefbot_common.map_io import MAX_MAP_CELLS, load_map  # noqa: E402
 from chefbot_navigation.costmap import INSCRIBED, CostmapParams, LayeredCostmap  # noqa: E402
 from chefbot_navigation.planners import PlannerParams, cell_costs, make_planner  # noqa: E402
 
-HOTEL = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
-TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+HOTEL = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
+TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
 SPEED_GOAL_MS = 150.0
 NAVFN_MS = 12.0          # NavFn (C++): 9-15 ms per plan on the 1.38 M-cell willow map; mid-point
 NAVFN_NAME = "NavFn C++ 9-15 ms, willow 1.38 M cells (mid-point)"

@@ -6,7 +6,7 @@ from the pybullet hotel (plugin drive, wheel odometry from the simulated wheel
 joints: it slips in spins) while move_base drove a fixed route round the room
 with look-around spins; /scan (the ~58 deg depth-camera band), odom tf, and
 ground truth (10 Hz) for scoring.  The ground-truth map is the world raster
-(chefbot_sim raster.py via hotel_map.yaml).  The robot starts at the world
+(chefbot_sim raster.py via hotel_world_map.yaml).  The robot starts at the world
 origin, so the SLAM map frame (odom at the first scan) is the world frame.
 
 Noise switch: ``noise=True`` multiplies the recorded odometry's error with an
@@ -37,7 +37,7 @@ from chefbot_navigation.slam.metrics import ate_rms, map_quality  # noqa: E402
 from chefbot_navigation.slam.synthetic import OdometryNoise  # noqa: E402
 
 BAG = ROOT / "chefbot_navigation" / "test" / "fixtures" / "hotel_route.bag"
-TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 
 
 def ground_truth(bag_path: Path) -> np.ndarray:

@@ -84,7 +84,7 @@ def run(quick: bool = False) -> list[dict]:
         # the layer: the camera's cloud into the hotel map (as move_base does it, decimation 2)
         pos, rot = sim.bullet.frame_pose(sim.params.depth_camera.depth_frame)
         pts = transform_points(depth_to_points(depth, cam)[::2, ::2], rot, pos)
-        occ = load_map(str(ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"))
+        occ = load_map(str(ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"))
         layer = PointCloudLayer(occ.info, CloudLayerParams())
         cost = _median_ms(lambda: layer.update(pts, pos), n)
         rows.append(_row("point-cloud obstacle layer: one camera cloud (4 800 points) into the hotel map", "ms/cloud",

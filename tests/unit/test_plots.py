@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[2]
-HOTEL_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+HOTEL_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 
 
 def _load(name: str):

@@ -31,7 +31,7 @@ import procs  # noqa: E402  (the workspace's process-group helpers)
 
 HANG_GUARD_S = 240.0  # against hangs only: every wait below ends on a condition
 PROBE_TIMEOUT_S = 120.0  # wall seconds RViz may take until every display is Ok (slow machine, sim)
-GOAL = (8.05, 3.0)  # table_9 of maps/hotel_tables.yaml: a long global plan for the picture
+GOAL = (8.05, 3.0)  # table_9 of maps/hotel_world_tables.yaml: a long global plan for the picture
 
 
 def why_no_rviz() -> str:

@@ -10,7 +10,7 @@ import pytest
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_common.map_io import MAX_MAP_CELLS, MapError, load_map, save_map, write_pgm
 
-HOTEL = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+HOTEL = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 
 
 def make_map(tmp_path: Path, pixels: np.ndarray, name: str = "m", ext: str = ".pgm", **fields) -> Path:

@@ -20,7 +20,7 @@ import pytest
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 PKG = Path(__file__).resolve().parents[2]
-TABLES = PKG.parent / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+TABLES = PKG.parent / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
 MASTER_TIMEOUT_S = 30.0
 
 

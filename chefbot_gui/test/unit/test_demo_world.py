@@ -9,7 +9,7 @@ import pytest
 from chefbot_gui.demo_world import aisle_route, load_map, point_along
 from chefbot_gui.geometry import path_length
 
-HOTEL_MAP = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+HOTEL_MAP = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 
 
 def test_hotel_map_loads_with_walls_and_free_aisles() -> None:

@@ -118,7 +118,7 @@ def test_missing_home_or_tables_rejected() -> None:
 
 def test_shared_tables_file_loads_through_the_sim_loader() -> None:
     from chefbot_common.tables import load_tables
-    path = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_tables.yaml"
+    path = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
     pres = DeliveryPresenter(load_tables(path), FakeRobot(), Clock())
     assert [t.key for t in pres.tables] == [f"table_{i}" for i in range(1, 10)]
 

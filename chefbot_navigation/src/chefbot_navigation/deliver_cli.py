@@ -7,7 +7,7 @@ from pathlib import Path
 from chefbot_common.geometry import Pose2D
 from chefbot_common.tables import TablesError, load_tables
 
-DEFAULT_TABLES = Path(__file__).resolve().parents[2] / "maps" / "hotel_tables.yaml"
+DEFAULT_TABLES = Path(__file__).resolve().parents[2] / "maps" / "hotel_tables.yaml"   # of maps/hotel_map.yaml
 
 
 class DeliverError(ValueError):

@@ -22,7 +22,7 @@ from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
 PKG = Path(__file__).resolve().parents[2]
 BAG = PKG / "test" / "fixtures" / "hotel_route.bag"
 NODE = PKG / "nodes" / "slam_offline"
-TRUTH = PKG.parent / "chefbot_navigation" / "maps" / "hotel_map.yaml"
+TRUTH = PKG.parent / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 
 
 @pytest.fixture(scope="module")

@@ -49,9 +49,9 @@ def test_map_server_files(tmp_path: Path):
 
 def test_shipped_hotel_map_regenerates_identically(pkg: Path, tmp_path: Path):
     g = rasterise(load_world(pkg / "worlds" / "hotel.yaml"), 0.05)
-    y, p = write_map(g, tmp_path / "hotel_map.yaml")
-    assert filecmp.cmp(y, SITE / "hotel_map.yaml", shallow=False)
-    assert filecmp.cmp(p, SITE / "hotel_map.pgm", shallow=False)
+    y, p = write_map(g, tmp_path / "hotel_world_map.yaml")
+    assert filecmp.cmp(y, SITE / "hotel_world_map.yaml", shallow=False)
+    assert filecmp.cmp(p, SITE / "hotel_world_map.pgm", shallow=False)
 
 
 def test_cli(pkg: Path, tmp_path: Path):
@@ -61,7 +61,7 @@ def test_cli(pkg: Path, tmp_path: Path):
     res = subprocess.run([sys.executable, str(pkg / "nodes" / "world_to_map"), str(pkg / "worlds" / "hotel.yaml"),
                           str(out)], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
-    assert filecmp.cmp(out.with_suffix(".pgm"), SITE / "hotel_map.pgm", shallow=False)
+    assert filecmp.cmp(out.with_suffix(".pgm"), SITE / "hotel_world_map.pgm", shallow=False)
     bad = tmp_path / "bad.yaml"
     bad.write_text("objects: [{shape: cone, pose: [0, 0]}]")
     res = subprocess.run([sys.executable, str(pkg / "nodes" / "world_to_map"), str(bad), str(out)],

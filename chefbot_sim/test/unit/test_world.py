@@ -175,14 +175,14 @@ def test_hotel_world_matches_the_book(pkg: Path):
 
 
 def test_tables_file(pkg: Path):
-    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_tables.yaml")
+    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml")
     assert set(tables) == {"home"} | {f"table_{i}" for i in range(1, 10)}
     assert tables["home"].x == 0.0 and tables["home"].y == 0.0
 
 
 def test_every_delivery_pose_is_free_and_faces_its_table(pkg: Path):
     w = load_world(pkg / "worlds" / "hotel.yaml")
-    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_tables.yaml")
+    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml")
     for name, p in tables.items():
         assert w.clearance(p.x, p.y) >= 0.35, name
         if name == "home":
@@ -204,7 +204,7 @@ def test_aisles_are_wide_enough(pkg: Path):
     dist = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution
     free = dist > 0.18 + 0.2 - 0.05 / 2
     labels, _ = ndimage.label(free)
-    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_tables.yaml")
+    tables = load_tables(pkg.parent / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml")
     home = labels[grid.cell_of(tables["home"].x, tables["home"].y)]
     assert home > 0
     for name, p in tables.items():
