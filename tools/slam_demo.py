@@ -25,7 +25,8 @@ Environment (as ``make demo``): CHEFBOT_DEMO_WORLD (world file), CHEFBOT_DEMO_MA
 world's raster, used for judging only), CHEFBOT_DEMO_TABLES_FILE (tables; the robot starts at
 ``home``), CHEFBOT_DEMO_TABLES (subset), CHEFBOT_DEMO_RTF, CHEFBOT_DEMO_DRIVE (default here:
 plugin, the drive the exploration was measured with), CHEFBOT_DEMO_USE_IMU (default here: 0,
-wheel-only heading: with the IMU's drifting yaw one room run came out 2.5 deg rotated, 6.5 % false-occupied).
+wheel-only heading: with the IMU's drifting yaw one room run came out 2.5 deg rotated, 6.5 % false-occupied),
+CHEFBOT_DEMO_SEED (the simulator's sensor- and wheel-noise seed, default 0: another seed, another run).
 """
 from __future__ import annotations
 
@@ -89,6 +90,10 @@ def run() -> int:
         say(f"ERROR: CHEFBOT_DEMO_DRIVE must be plugin or firmware, got {drive!r}")
         return 2
     use_imu = os.environ.get("CHEFBOT_DEMO_USE_IMU", "false") not in ("0", "false", "")
+    seed = os.environ.get("CHEFBOT_DEMO_SEED", "0").strip() or "0"
+    if not seed.isdigit():
+        say(f"ERROR: CHEFBOT_DEMO_SEED must be a whole number >= 0, got {seed!r}")
+        return 2
     from chefbot_common.map_io import MapError, load_map
     from chefbot_common.tables import TablesError, load_map_in_world, load_tables
     try:
@@ -115,12 +120,14 @@ def run() -> int:
     log = LOG_DIR / "roslaunch.log"
     launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "gmapping_demo.launch", "explore:=true",
                   "slam_required:=false", f"world:={world}", f"real_time_factor:={rtf}", f"drive:={drive}",
-                  f"use_imu:={str(use_imu).lower()}", f"x:={home.x}", f"y:={home.y}", f"yaw:={home.yaw}"]
+                  f"use_imu:={str(use_imu).lower()}", f"x:={home.x}", f"y:={home.y}", f"yaw:={home.yaw}",
+                  f"seed:={int(seed)}"]
     say(f"SLAM workflow (book ch. 4): map -> save -> localize -> deliver; world {world.name}, {drive} drive"
         f"{', IMU heading' if use_imu else ''}, master {uri}, real-time factor {rtf}; "
         f"log: {log.relative_to(ROOT) if log.is_relative_to(ROOT) else log}")
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
-    report: dict = {"world": str(world), "real_time_factor": rtf, "drive": drive, "use_imu": use_imu}
+    report: dict = {"world": str(world), "real_time_factor": rtf, "drive": drive, "use_imu": use_imu,
+                    "seed": int(seed)}
     LOG_DIR.mkdir(parents=True, exist_ok=True)
     t_wall0 = time.monotonic()
     stage = "start"

@@ -12,10 +12,11 @@ Goals (issue 17): exploration covers >= 95 % of the reachable free area within 1
 time; the map matches >= 95 % of the raster's visible occupied cells within one cell with
 <= 2 % false-occupied cells.  The offline figures on a recorded route are bench_slam's.
 
-    python chefbot_navigation/bench/bench_explore.py
+    python chefbot_navigation/bench/bench_explore.py [--seed N]   (the sim's noise seed, default 0)
 """
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import shutil
@@ -29,11 +30,11 @@ TABLES = "table_1,table_5,table_9"
 EXPLORE_GOAL_S = 600.0
 
 
-def _run() -> dict:
+def _run(seed: int = 0) -> dict:
     if OUT.exists():
         shutil.rmtree(OUT)
     env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=str(OUT), CHEFBOT_DEMO_TABLES=TABLES,
-               CHEFBOT_DEMO_RTF="1.0")
+               CHEFBOT_DEMO_RTF="1.0", CHEFBOT_DEMO_SEED=str(seed))
     proc = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
                           text=True, timeout=3600, start_new_session=True)
     (OUT / "demo.out").write_text(proc.stdout + proc.stderr)
@@ -44,12 +45,12 @@ def _run() -> dict:
     return json.loads(report.read_text())
 
 
-def run(quick: bool = False) -> list[dict]:
+def run(quick: bool = False, seed: int = 0) -> list[dict]:
     """Rows of one live exploration run (none with ``quick``: it takes minutes)."""
     if quick:
         return []
-    r = _run()
-    case = "hotel, live: slam + explore + move_base at rtf 1, noisy wheel odometry"
+    r = _run(seed)
+    case = "hotel, live: slam + explore + move_base at rtf 1, noisy wheel odometry" + (f", seed {seed}" if seed else "")
     rows: list[dict] = []
 
     def row(metric: str, ours, goal: str | None, met: bool | None, case_: str = case) -> None:
@@ -77,5 +78,9 @@ def run(quick: bool = False) -> list[dict]:
 
 
 if __name__ == "__main__":
-    for row in run(quick="--quick" in sys.argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="no run (it takes minutes)")
+    ap.add_argument("--seed", type=int, default=0, help="the simulator's sensor- and wheel-noise seed")
+    args = ap.parse_args()
+    for row in run(quick=args.quick, seed=args.seed):
         print(f"{row['case']}: {row['metric']} = {row['ours']} (goal {row['goal']}: {row['met']})")

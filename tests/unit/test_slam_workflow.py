@@ -52,3 +52,18 @@ def test_a_doubled_wall_and_an_unseen_corner_show_in_the_figures():
     bad.data[corner & free] = -1
     q, _ = wf.judge_map(bad, truth, (0.0, 0.0))
     assert q.false_occupied > 0.1 and q.coverage < 0.95
+
+
+def test_demo_slam_rejects_a_bad_seed_before_starting_anything(tmp_path):
+    """`make demo SLAM=1` with CHEFBOT_DEMO_SEED that is no whole number: exit 2 and a message naming it,
+    before any roscore or simulator is started."""
+    import os
+    import subprocess
+
+    env = dict(os.environ, CHEFBOT_DEMO_SLAM="1", CHEFBOT_DEMO_SLAM_DIR=str(tmp_path / "out"),
+               CHEFBOT_DEMO_SEED="-3")
+    out = subprocess.run([sys.executable, str(ROOT / "tools" / "demo.py")], env=env, capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert "CHEFBOT_DEMO_SEED must be a whole number >= 0, got '-3'" in out.stdout
+    assert not (tmp_path / "out" / "roslaunch.log").exists()
