@@ -141,6 +141,13 @@ def stop_children() -> None:
         kill_group(pgid, grace_int=2.0, grace_term=2.0)
 
 
+def abandon(pool: ThreadPoolExecutor | None) -> None:
+    """On an interrupt: drop the pool's queued jobs and stop every running child (``stop_children``)."""
+    if pool is not None:
+        pool.shutdown(wait=False, cancel_futures=True)
+    stop_children()
+
+
 def niced(cmd: list[str], nice: int) -> list[str]:
     """cmd run at CPU priority ``nice`` (0: as it is)."""
     return ["nice", "-n", str(nice), *cmd] if nice else cmd
@@ -323,8 +330,7 @@ def run_side_stage(env: dict, firmware: bool, rostests: list[tuple[str, Path]],
             for fut in futures:
                 total.add(fut.result())
         except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            stop_children()
+            abandon(pool)
             raise
     return total
 
@@ -483,9 +489,7 @@ def main() -> int:
         for fut in unit_futures:
             total.add(fut.result())
     except BaseException:
-        if background is not None:
-            background.shutdown(wait=False, cancel_futures=True)
-        stop_children()
+        abandon(background)
         raise
     if background is not None:
         background.shutdown()
