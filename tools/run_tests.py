@@ -99,10 +99,11 @@ def junit_totals(path: Path, label: str) -> Totals:
         failed_here = 0
         for case in suite.iter("testcase"):
             name = f"{label}::{case.get('classname', '')}.{case.get('name', '')}"
-            if case.find("failure") is not None or case.find("error") is not None:
+            if (bad := case.find("failure")) is not None or (bad := case.find("error")) is not None:
                 t.failed += 1
                 failed_here += 1
-                t.failures.append(name)
+                reason = failure_reason(bad)
+                t.failures.append(f"{name}: {reason}" if reason else name)
             elif (skip := case.find("skipped")) is not None:
                 t.skipped += 1
                 t.skips.append(f"{name}: {skip.get('message', '')}")
@@ -113,6 +114,16 @@ def junit_totals(path: Path, label: str) -> Totals:
             t.failed += declared - failed_here
             t.failures.append(f"{label}: {declared - failed_here} error(s) outside test cases in {path.name}")
     return t
+
+
+def failure_reason(el: ET.Element, limit: int = 300) -> str:
+    """The first line of a JUnit <failure>/<error>: its message, else its text (for the closing FAILED
+    lines, which CI's log tail shows when a test's own output has scrolled away)."""
+    for text in (el.get("message"), el.text):
+        lines = [ln.strip() for ln in (text or "").splitlines() if ln.strip()]
+        if lines:
+            return lines[0][:limit]
+    return ""
 
 
 _LIVE: set[int] = set()     # the runners' children's process groups, for an interrupt to stop

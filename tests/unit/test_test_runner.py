@@ -35,8 +35,18 @@ def test_junit_counts_pass_fail_skip(tmp_path: Path) -> None:
         "</testsuite></testsuites>")
     t = run_tests.junit_totals(xml, "lbl")
     assert (t.passed, t.failed, t.skipped) == (1, 2, 1)
-    assert "lbl::a.bad" in t.failures and "lbl::a.err" in t.failures
+    assert "lbl::a.bad: x" in t.failures and "lbl::a.err: y" in t.failures   # with the reason
     assert t.skips == ["lbl::a.sk: rviz not installed"]  # the runner prints each skip's reason
+
+
+def test_junit_failure_reason_is_the_first_line_of_message_or_text(tmp_path: Path) -> None:
+    # rosunit writes the assertion into the element's text, with the traceback after it
+    xml = tmp_path / "r.xml"
+    xml.write_text('<testsuite tests="2"><testcase classname="c" name="t">'
+                   '<failure type="AssertionError">\n0.70 not greater than 0.75\n  File "x.py", line 1</failure>'
+                   '</testcase><testcase classname="c" name="u"><failure/></testcase></testsuite>')
+    t = run_tests.junit_totals(xml, "lbl")
+    assert t.failures == ["lbl::c.t: 0.70 not greater than 0.75", "lbl::c.u"]
 
 
 def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:
