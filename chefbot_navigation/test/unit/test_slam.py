@@ -189,10 +189,11 @@ def test_loop_closure_on_square_corridor():
     assert _double_walls(open_loop, segs) > 0.3
 
 
-def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False, border: bool = False):
+def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False, border: bool = False,
+                                score: float | None = None):
     """The corridor run, with the loop matcher answering 0.3 m off the truth at its first good match
-    (``every``: at all of them; ``border``: saying it lies on the window's edge) - what a look-alike
-    place (a second table like the first) does."""
+    (``every``: at all of them; ``border``: saying it lies on the window's edge; ``score``: with this
+    score) - what a look-alike place (a second table like the first) does."""
     import chefbot_navigation.slam.mapper as mapper
 
     real, calls = mapper.match, []
@@ -204,6 +205,8 @@ def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False, border: bo
             calls.append(prior)
             res.pose = Pose2D(res.pose.x + 0.3, res.pose.y, res.pose.yaw)
             res.on_border = border
+            if score is not None:
+                res.score = score
         return res
 
     mapper.match = look_alike
@@ -229,6 +232,18 @@ def test_a_single_loop_match_on_the_window_edge_is_not_used():
     slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, border=True)
     assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
     assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
+
+
+def test_a_single_weak_loop_match_is_not_used():
+    # the fit test off: a match scoring under loop_sure_score that improves the fit by less than
+    # loop_border_gain makes the closure wait (a look-alike 0.3 m off keeps much of the fit)
+    cfg = SlamConfig(loop_confirm_fit=1.5)
+    slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, score=0.75)
+    assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
+    assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
+    # the same match scoring as a sure one is taken at once
+    slam, _, err, _, _ = _corridor_with_a_look_alike(cfg, score=0.95)
+    assert slam.stats.loop_unconfirmed == 0 and err.max() > 0.1, (err.max(), slam.stats)
 
 
 def test_loop_matches_that_agree_are_used():
