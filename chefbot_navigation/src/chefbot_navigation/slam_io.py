@@ -79,6 +79,23 @@ class SlamFrontend:
         return self.slam.add_scan(msg.header.stamp.to_sec(), scan, odom)
 
 
+class SeqGaps:
+    """Scans lost before the node saw them, from gaps in ``header.seq`` (a full subscriber queue while
+    a loop closure re-optimises, or the transport).  A seq that goes back (a restarted publisher, a
+    replayed bag) starts the count afresh without counting a gap."""
+
+    def __init__(self) -> None:
+        self.last: int | None = None
+        self.lost = 0
+
+    def update(self, seq: int) -> int:
+        """Record a scan's seq; returns how many scans were missing just before it."""
+        gap = seq - self.last - 1 if self.last is not None and seq > self.last + 1 else 0
+        self.last = seq
+        self.lost += gap
+        return gap
+
+
 def tum_lines(trajectory: list[tuple[float, Pose2D]]) -> list[str]:
     """TUM trajectory lines ``t x y z qx qy qz qw`` (one per scan, the scan's stamp)."""
     out = []

@@ -17,7 +17,7 @@ from chefbot_common.map_io import load_map
 from chefbot_navigation.ros_slam_bag import BagError, run_bag
 from chefbot_navigation.slam.mapper import SlamConfig
 from chefbot_navigation.slam.metrics import map_quality
-from chefbot_navigation.slam_io import SlamFrontend, SlamInputError
+from chefbot_navigation.slam_io import SeqGaps, SlamFrontend, SlamInputError
 
 PKG = Path(__file__).resolve().parents[2]
 BAG = PKG / "test" / "fixtures" / "hotel_route.bag"
@@ -149,3 +149,12 @@ def test_false_occupied_clusters_finds_a_phantom_wall():
     assert [n for n, _, _ in clusters] == [20, 1]
     assert clusters[0][1] == pytest.approx(1.0, abs=0.05) and clusters[0][2] == pytest.approx(1.025, abs=0.03)
     assert false_occupied_clusters(OccupancyMap(info, truth), OccupancyMap(info, truth)) == []
+
+
+def test_seq_gaps_count_lost_scans_and_restart_on_a_seq_going_back():
+    g = SeqGaps()
+    assert [g.update(s) for s in (5, 6, 7)] == [0, 0, 0]      # the first seen seq is no gap
+    assert g.update(10) == 2 and g.update(11) == 0 and g.lost == 2
+    assert g.update(0) == 0 and g.update(1) == 0              # publisher restarted / bag replayed
+    assert g.update(4) == 2 and g.lost == 4
+
