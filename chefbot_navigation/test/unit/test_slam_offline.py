@@ -157,4 +157,3 @@ def test_seq_gaps_count_lost_scans_and_restart_on_a_seq_going_back():
     assert g.update(10) == 2 and g.update(11) == 0 and g.lost == 2
     assert g.update(0) == 0 and g.update(1) == 0              # publisher restarted / bag replayed
     assert g.update(4) == 2 and g.lost == 4
-
