@@ -8,7 +8,9 @@ Four stages on a private ROS master, one progress line per stage:
    frontiers left, elapsed sim time) are echoed;
 2. **save**: our ``map_saver`` writes the map under the log dir (path printed); it is judged
    against the world raster (TEST ORACLE, judging only: matched / false-occupied / reachable
-   free area mapped, and its frame's pose in the world by align_tables' registration);
+   free area mapped, and its frame's pose in the world by align_tables' registration), and
+   SLAM's live pose, sampled while mapping, against the simulator's truth (error RMS / max
+   in the registered frame; ATE after the best rigid fit);
 3. **localize**: ``slam`` and ``explore`` are stopped; our ``map_server`` serves the saved
    file and our ``amcl`` starts at SLAM's last ``map -> base_footprint``;
 4. **deliver**: the same move_base client and per-leg lines as ``make demo`` to every table
@@ -26,10 +28,13 @@ world's raster, used for judging only), CHEFBOT_DEMO_TABLES_FILE (tables; the ro
 ``home``), CHEFBOT_DEMO_TABLES (subset), CHEFBOT_DEMO_RTF, CHEFBOT_DEMO_DRIVE (default here:
 plugin, the drive the exploration was measured with), CHEFBOT_DEMO_USE_IMU (default here: 0,
 wheel-only heading: with the IMU's drifting yaw one room run came out 2.5 deg rotated, 6.5 % false-occupied),
-CHEFBOT_DEMO_SEED (the simulator's sensor- and wheel-noise seed, default 0: another seed, another run).
+CHEFBOT_DEMO_SEED (the simulator's sensor- and wheel-noise seed, default 0: another seed, another run),
+CHEFBOT_DEMO_SLAM_BAG (a bag path: ``rosbag record`` of scan, tf, tf_static and ground_truth/odom
+while mapping, for replaying a run with ``slam_offline``; default: none).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -41,6 +46,7 @@ from demo import ROOT, STARTUP_TIMEOUT_S, DemoInputError, say, site_files, table
 from procs import ProcessGroup, free_port
 from slam_workflow import (
     ExploreWatch,
+    SlamTrack,
     WorkflowError,
     clear_costmaps,
     judge_map,
@@ -129,24 +135,31 @@ def run() -> int:
     report: dict = {"world": str(world), "real_time_factor": rtf, "drive": drive, "use_imu": use_imu,
                     "seed": int(seed)}
     LOG_DIR.mkdir(parents=True, exist_ok=True)
+    bag = os.environ.get("CHEFBOT_DEMO_SLAM_BAG", "").strip()
     t_wall0 = time.monotonic()
     stage = "start"
+    track = None
     try:
         with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
                 ProcessGroup(launch_cmd, env=env, log=log) as launch:
             _wait_sim(launch, log)
             import rospy
-            import tf2_ros
 
             alive = lambda: launch.poll() is None          # noqa: E731
-            buffer = tf2_ros.Buffer()
-            tf2_ros.TransformListener(buffer)
+            track = SlamTrack()                             # SLAM's live pose vs the truth (judging only)
             stage = "map"
             say("stage 1/4 map: slam + explore + move_base explore the world until no frontier is left")
             watch = ExploreWatch()
             t0 = rospy.get_time()
-            complete = watch.wait(EXPLORE_TIMEOUT_S, alive, echo=lambda line: say(f"  {line}"))
+            with contextlib.ExitStack() as recording:
+                if bag:
+                    recording.enter_context(ProcessGroup(
+                        ["rosbag", "record", "-O", bag, "/scan", "/tf", "/tf_static", "/ground_truth/odom"],
+                        env=env, log=LOG_DIR / "rosbag_record.log"))
+                    say(f"  recording scan, tf, tf_static, ground_truth/odom to {bag}")
+                complete = watch.wait(EXPLORE_TIMEOUT_S, alive, echo=lambda line: say(f"  {line}"))
             explore_s = rospy.get_time() - t0
+            track.close()
             report.update(explore_sim_s=explore_s, explore_complete=complete, explore_final=watch.final_line())
             watch.close()
             if not complete:
@@ -164,8 +177,15 @@ def run() -> int:
                 f"yaw {m.yaw * 57.2958:+.2f} deg (registration RMS {100 * align.rms_m:.1f} cm)")
             report.update(map_file=f"{prefix}.yaml", matched=quality.matched, false_occupied=quality.false_occupied,
                           coverage=quality.coverage, map_in_world=[m.x, m.y, m.yaw], registration_rms_m=align.rms_m)
+            live = track.report(m)
+            report.update(live)
+            if "live_error_rms_m" in live:
+                say(f"  SLAM's live pose against the truth while mapping ({live['track_samples']} samples): "
+                    f"{100 * live['live_error_rms_m']:.1f} cm RMS, max {100 * live['live_error_max_m']:.1f} cm "
+                    f"at {live['live_error_max_at_s']:.0f} s, heading max {live['live_yaw_error_max_deg']:.1f} deg; "
+                    f"ATE after the best rigid fit {100 * live['live_ate_rms_m']:.1f} cm RMS")
             stage = "localize"
-            start = slam_pose(buffer)
+            start = slam_pose(track.buffer)
             stop_mapping()
             cmds = localization_commands(prefix.with_suffix(".yaml"), start)
             with ProcessGroup(cmds[0], env=env, log=LOG_DIR / "map_server.log") as server, \
@@ -180,6 +200,8 @@ def run() -> int:
             rospy.signal_shutdown("demo done")
     except WorkflowError as exc:
         say(f"ERROR in stage '{stage}': {exc}; see {log}")
+        if track is not None and "live_error_rms_m" not in report:
+            report.update(track.report(home), track_frame="home (SLAM's map frame starts at the robot's start)")
         (LOG_DIR / "slam_demo.json").write_text(json.dumps({**report, "failed_stage": stage,
                                                             "error": str(exc)}, indent=2) + "\n")
         return 1

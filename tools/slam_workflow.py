@@ -14,7 +14,9 @@ Shared by ``make demo SLAM=1`` (tools/slam_demo.py) and the slam_workflow rostes
    :func:`wait_localized` waits for amcl, :func:`clear_costmaps` drops the scan obstacles
    marked while mapping;
 6. :func:`judge_map` (test oracle: reads the world raster): map quality and the saved
-   map's pose in the world (``map_align.align_maps``, align_tables' registration).
+   map's pose in the world (``map_align.align_maps``, align_tables' registration);
+7. :class:`SlamTrack` (test oracle: reads ``ground_truth/odom``) records SLAM's live pose
+   next to the truth while mapping, for the trajectory error of the run.
 
 Needs rospy initialised on the launch's master; wall-clock timeouts throughout (the
 sim may run slower or faster than real time).
@@ -24,18 +26,23 @@ from __future__ import annotations
 import subprocess
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import rosnode
 import rospy
 import tf2_ros
+from nav_msgs.msg import Odometry
+from plots import pose_at
 from rosgraph_msgs.msg import Log
 from std_msgs.msg import Bool
 
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_common.grid import OccupancyMap
 from chefbot_common.map_io import load_map
+from chefbot_navigation.slam.metrics import ate_rms
 
 ROOT = Path(__file__).resolve().parent.parent
 NAV_LAUNCH = ROOT / "chefbot_navigation" / "launch"
@@ -103,6 +110,77 @@ class ExploreWatch:
     def close(self) -> None:
         for sub in self._subs:
             sub.unregister()
+
+
+class SlamTrack:
+    """SLAM's live ``map -> base_footprint`` next to the simulator's truth (TEST ORACLE: judging only).
+
+    Every ``period`` s (sim) the latest tf estimate is paired with ``ground_truth/odom`` interpolated at
+    the estimate's own stamp.  The estimate is what move_base navigated on at that moment, before later
+    loop closures corrected the past: :meth:`report` gives its error against the truth in the frame the
+    saved map was registered to (the robot's live localization error) and the ATE after the best rigid
+    fit (the issue's metric, comparable with bench_slam's offline figure)."""
+
+    def __init__(self, period: float = 0.5, map_frame: str = "map", base_frame: str = "base_footprint") -> None:
+        self.frames = (map_frame, base_frame)
+        self._lock = threading.Lock()
+        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=200)   # t, x, y, yaw (world)
+        self.samples: list[tuple[float, Pose2D, Pose2D]] = []                          # t, estimate, truth (world)
+        self.buffer = tf2_ros.Buffer()
+        self._listener = tf2_ros.TransformListener(self.buffer)
+        self._sub = rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=50)
+        self._timer = rospy.Timer(rospy.Duration(period), self._sample)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        p = msg.pose.pose
+        with self._lock:
+            self._history.append((msg.header.stamp.to_sec(), p.position.x, p.position.y,
+                                  yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z,
+                                                      p.orientation.w)))
+
+    def _sample(self, _event) -> None:
+        try:
+            tfm = self.buffer.lookup_transform(*self.frames, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return                      # SLAM not up yet
+        t = tfm.header.stamp.to_sec()
+        with self._lock:
+            truth = pose_at(list(self._history), t)
+            if truth is None or (self.samples and t <= self.samples[-1][0]):
+                return                  # no truth at that stamp, or nothing new (a stale tf)
+            tr, q = tfm.transform.translation, tfm.transform.rotation
+            self.samples.append((t, Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)), Pose2D(*truth)))
+
+    def close(self) -> None:
+        self._timer.shutdown()
+        self._sub.unregister()
+
+    def report(self, map_in_world: Pose2D) -> dict:
+        """:func:`track_figures` of the samples so far."""
+        with self._lock:
+            samples = list(self.samples)
+        return track_figures(samples, map_in_world)
+
+
+def track_figures(samples: list[tuple[float, Pose2D, Pose2D]], map_in_world: Pose2D) -> dict:
+    """Live error figures (m, deg, s since the first sample) of ``samples`` (t, SLAM's estimate in its map
+    frame, truth in the world) with the saved map registered at ``map_in_world``; JSON-ready, with the
+    samples (t, estimate and truth in the map frame) for plots and post-mortems."""
+    if len(samples) < 2:
+        return {"track_samples": len(samples)}
+    to_map = map_in_world.inverse()
+    t = np.array([s[0] for s in samples])
+    est = np.array([[s[1].x, s[1].y, s[1].yaw] for s in samples])
+    truth = np.array([[h.x, h.y, h.yaw] for h in (to_map.compose(s[2]) for s in samples)])
+    err = np.hypot(*(est[:, :2] - truth[:, :2]).T)
+    yaw_err = np.degrees(np.abs(np.remainder(est[:, 2] - truth[:, 2] + np.pi, 2 * np.pi) - np.pi))
+    k = int(np.argmax(err))
+    return {"track_samples": len(samples), "live_error_rms_m": float(np.sqrt(np.mean(err ** 2))),
+            "live_error_max_m": float(err[k]), "live_error_max_at_s": float(t[k] - t[0]),
+            "live_yaw_error_max_deg": float(yaw_err.max()),
+            "live_ate_rms_m": ate_rms(est[:, :2], truth[:, :2]),
+            "track": {"t": np.round(t - t[0], 2).tolist(), "estimate": np.round(est, 4).tolist(),
+                      "truth": np.round(truth, 4).tolist()}}
 
 
 def save_map(prefix: Path, env: dict | None = None, timeout: float = 120.0) -> OccupancyMap:

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from chefbot_common.geometry import Pose2D
 from chefbot_common.grid import GridInfo, OccupancyMap
@@ -67,3 +68,23 @@ def test_demo_slam_rejects_a_bad_seed_before_starting_anything(tmp_path):
     assert out.returncode == 2, out.stdout + out.stderr
     assert "CHEFBOT_DEMO_SEED must be a whole number >= 0, got '-3'" in out.stdout
     assert not (tmp_path / "out" / "roslaunch.log").exists()
+
+
+def test_track_figures_give_the_live_error_in_the_registered_frame_and_the_fitted_ate():
+    """SLAM's live track against the truth: a map frame 1 m / 90 deg off in the world is undone by the
+    registration; a 0.2 m jump for the last quarter of the run shows as the max (and when) and in the RMS."""
+    frame = Pose2D(1.0, -2.0, math.pi / 2)
+    samples = []
+    for i in range(40):
+        est = Pose2D(0.1 * i, 0.0, 0.05 * i)
+        if i >= 30:
+            est = Pose2D(est.x, 0.2, est.yaw)
+        samples.append((100.0 + 0.5 * i, est, frame.compose(Pose2D(0.1 * i, 0.0, 0.05 * i))))
+    f = wf.track_figures(samples, frame)
+    assert f["track_samples"] == 40
+    assert f["live_error_max_m"] == pytest.approx(0.2, abs=1e-9) and f["live_error_max_at_s"] == pytest.approx(15.0)
+    assert f["live_error_rms_m"] == pytest.approx(0.1, abs=1e-9)          # sqrt(10/40 * 0.04)
+    assert f["live_yaw_error_max_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert 0.0 < f["live_ate_rms_m"] < f["live_error_rms_m"]             # a best fit can only do better
+    assert len(f["track"]["t"]) == 40 and f["track"]["truth"][5] == pytest.approx([0.5, 0.0, 0.25], abs=1e-4)
+    assert wf.track_figures(samples[:1], frame) == {"track_samples": 1}
