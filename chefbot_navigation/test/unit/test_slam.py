@@ -237,6 +237,7 @@ def test_a_loop_match_still_on_the_window_edge_after_searching_around_it_is_drop
     cfg = SlamConfig(loop_confirm_fit=1.5)
     slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, border=True)
     assert len(calls) == 1 + mapper.LOOP_RECENTRES and slam.stats.loop_no_maximum == 1, slam.stats
+    assert any("dropped: still on the search window's edge" in e for e in slam.stats.events), slam.stats.events
     assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
     assert _double_walls(slam, segs) < 0.01
 

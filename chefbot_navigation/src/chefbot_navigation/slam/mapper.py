@@ -102,7 +102,7 @@ class SlamConfig:
     loop_every: int = 3                  # keyframes between loop-closure attempts
     loop_confirm_fit: float = 0.6        # the pose before the closure scores this against the loop candidates:
     #                                      the closure is used only once a second match agrees with it (> 1: never)
-    loop_border_gain: float = 0.4        # a match on the search window's edge (or weak: loop_sure_score) scoring
+    loop_border_gain: float = 0.4        # a match re-centred off the window's edge (or weak: loop_sure_score) scoring
     #                                      less than this above the pose before it also waits for a second match
     loop_sure_score: float = 0.85        # a match scoring less than this is treated as one on the window's edge
     #                                      (true closures seen: 0.92-0.99, one under 1 m drift 0.81; a false one 0.75)
@@ -427,6 +427,9 @@ class Slam:
             recentred += 1
         if res.on_border and res.score >= c.loop_min_score:
             self.stats.loop_no_maximum += 1
+            self.stats.events.append(f"loop match keyframe {cur} dropped: still on the search window's edge after "
+                                     f"{recentred} searches around it, {res.pose.distance(pose):.3f} m off "
+                                     f"(score {res.score:.2f})")
             return
         if res.score < c.loop_min_score or res.spread > c.loop_max_spread:
             return
