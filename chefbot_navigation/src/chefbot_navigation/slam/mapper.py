@@ -18,7 +18,7 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
    window's edge is searched for again around itself, ``LOOP_RECENTRES`` times;
    one still on the edge has no maximum and is dropped); a good match
    (``loop_min_score``) adds a loop edge - if the pose before it already fitted
-   the candidates (``loop_confirm_fit``), or the match lies on the search
+   the candidates (``loop_confirm_fit``), or the match was found off the
    window's edge or scores below ``loop_sure_score`` without improving the
    fit by ``loop_border_gain``, only once a second match within
    ``loop_confirm_window`` keyframes asks for the same correction (a look-alike
@@ -52,8 +52,10 @@ from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, 
 # a tracking match this far from the odometry prediction is logged (stats.events): a mis-match that
 # slips the map shows as one, the usual corrections of noisy wheels are a few cm and a degree or two
 LARGE_CORRECTION_XY = 0.10        # m
-LOOP_RECENTRES = 2                # a loop match on the window's edge is searched again around itself this often
 LARGE_CORRECTION_YAW = math.radians(3.0)
+# a loop match whose best pose lies on the search window's edge is searched for again around itself this
+# often; still on the edge, it has no maximum and is dropped (Slam._close_loop)
+LOOP_RECENTRES = 2
 
 
 @dataclass
@@ -104,7 +106,7 @@ class SlamConfig:
     #                                      the closure is used only once a second match agrees with it (> 1: never)
     loop_border_gain: float = 0.4        # a match re-centred off the window's edge (or weak: loop_sure_score) scoring
     #                                      less than this above the pose before it also waits for a second match
-    loop_sure_score: float = 0.85        # a match scoring less than this is treated as one on the window's edge
+    loop_sure_score: float = 0.85        # a match scoring less than this is treated as one found off the edge
     #                                      (true closures seen: 0.92-0.99, one under 1 m drift 0.81; a false one 0.75)
     loop_confirm_window: int = 30        # keyframes within which the second match must come
     loop_confirm_xy: float = 0.1         # m, largest disagreement of the two corrections
@@ -437,8 +439,8 @@ class Slam:
         closure = _Closure(cur, anchor, self.graph.poses[anchor].inverse().compose(res.pose),
                            res.pose.compose(pose.inverse()))
         # the pose before the closure already fits the old keyframes (the match contradicts a consistent
-        # map), or the best lies on the window's edge (perhaps no maximum: in the slam_room runs every false
-        # closure sat 0.33 m off, on the 0.3 m window's edge) without improving the fit much (a real drift
+        # map), or the best was found off the window's edge (in the slam_room runs every false closure sat
+        # 0.33 m off, on the 0.3 m window's edge) without improving the fit much (a real drift
         # beyond the window improves it by 0.4-0.8; the same holds for a weak match: a slam_workflow run's
         # false closure of 0.34 m / 9.4 deg scored 0.75, a true one under 1 m drift 0.81 from a fit of 0.10):
         # a look-alike place gives one such match, a real drift gives them in a row, so it is used only once
