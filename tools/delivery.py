@@ -51,6 +51,43 @@ RESULT_GRACE = 2.0         # s wall: a terminal goal status whose result message
 TRUTH_HISTORY = 100       # ground-truth messages kept to interpolate at the estimate's stamp (2 s at 50 Hz)
 
 
+class TruthHistory:
+    """The last ``size`` poses of ``ground_truth/odom`` (the simulator's oracle) as (t s, x m, y m, yaw rad)
+    in the world, fed by :meth:`add`; :meth:`at` interpolates them at a stamp (``plots.pose_at``)."""
+
+    def __init__(self, size: int = TRUTH_HISTORY) -> None:
+        self._lock = threading.Lock()
+        self._poses: deque[tuple[float, float, float, float]] = deque(maxlen=size)
+
+    def add(self, msg: Odometry) -> None:
+        p = msg.pose.pose
+        yaw = yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+        with self._lock:
+            self._poses.append((msg.header.stamp.to_sec(), p.position.x, p.position.y, yaw))
+
+    def last_stamp(self) -> float | None:
+        """The newest pose's stamp (sim s), None before the first."""
+        with self._lock:
+            return self._poses[-1][0] if self._poses else None
+
+    def at(self, t: float) -> tuple[float, float, float] | None:
+        """(x, y, yaw) at sim time ``t``, or None outside the poses kept."""
+        with self._lock:
+            poses = list(self._poses)
+        return pose_at(poses, t)
+
+
+def latest_pose(buffer: tf2_ros.Buffer, frame: str = "map",
+                child: str = "base_footprint") -> tuple[float, Pose2D] | None:
+    """The latest ``frame -> child`` in ``buffer`` with its stamp (sim s), or None when tf has none."""
+    try:
+        tfm = buffer.lookup_transform(frame, child, rospy.Time(0))
+    except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+        return None
+    tr, q = tfm.transform.translation, tfm.transform.rotation
+    return tfm.header.stamp.to_sec(), Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+
+
 @dataclass
 class Leg:
     name: str
@@ -95,7 +132,7 @@ class DeliveryClient:
         self.truth: Odometry | None = None
         self.bumps = 0
         self._bumping = False
-        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=TRUTH_HISTORY)  # t, x, y, yaw (world)
+        self._history = TruthHistory()
         self._samples: list[tuple[float, tuple[float, float, float], tuple[float, float, float] | None]] = []
         self._legs: list[dict] = []
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
@@ -111,12 +148,7 @@ class DeliveryClient:
 
     def _estimate_stamped(self) -> tuple[float, Pose2D] | None:
         """The localization's latest map->base_footprint with its stamp (sim s), or None when tf has none."""
-        try:
-            tfm = self.tf_buffer.lookup_transform("map", "base_footprint", rospy.Time(0))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
-            return None
-        tr, q = tfm.transform.translation, tfm.transform.rotation
-        return tfm.header.stamp.to_sec(), Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        return latest_pose(self.tf_buffer)
 
     def estimate(self) -> Pose2D | None:
         """The localization's latest map->base_footprint, or None when tf has none."""
@@ -124,22 +156,19 @@ class DeliveryClient:
         return stamped[1] if stamped else None
 
     def _on_truth(self, msg: Odometry) -> None:
-        p = msg.pose.pose
-        yaw = yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
         with self._lock:
             self.truth = msg
-            self._history.append((msg.header.stamp.to_sec(), p.position.x, p.position.y, yaw))
+        self._history.add(msg)
 
     def _sample(self, _event: rospy.timer.TimerEvent) -> None:
         """One trajectory sample: the estimate (tf, latest) and the truth at the estimate's stamp,
         carried into the map frame (``map_in_world``)."""
         stamped = self._estimate_stamped()
-        with self._lock:
-            history = list(self._history)
-        if not history:
+        t_last = self._history.last_stamp()
+        if t_last is None:
             return
-        t, estimate = (history[-1][0], None) if stamped is None else stamped  # no localization yet: truth alone
-        truth = pose_at(history, t)
+        t, estimate = (t_last, None) if stamped is None else stamped  # no localization yet: truth alone
+        truth = self._history.at(t)
         if truth is None:
             return
         here = self.map_in_world.inverse().compose(Pose2D(*truth))   # world -> map frame

@@ -26,7 +26,6 @@ from __future__ import annotations
 import subprocess
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
@@ -34,8 +33,8 @@ import numpy as np
 import rosnode
 import rospy
 import tf2_ros
+from delivery import TruthHistory, latest_pose
 from nav_msgs.msg import Odometry
-from plots import pose_at
 from rosgraph_msgs.msg import Log
 from std_msgs.msg import Bool
 
@@ -124,32 +123,23 @@ class SlamTrack:
     def __init__(self, period: float = 0.5, map_frame: str = "map", base_frame: str = "base_footprint") -> None:
         self.frames = (map_frame, base_frame)
         self._lock = threading.Lock()
-        self._history: deque[tuple[float, float, float, float]] = deque(maxlen=200)   # t, x, y, yaw (world)
+        self._history = TruthHistory(200)                                              # 4 s at 50 Hz
         self.samples: list[tuple[float, Pose2D, Pose2D]] = []                          # t, estimate, truth (world)
         self.buffer = tf2_ros.Buffer()
         self._listener = tf2_ros.TransformListener(self.buffer)
-        self._sub = rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=50)
+        self._sub = rospy.Subscriber("ground_truth/odom", Odometry, self._history.add, queue_size=50)
         self._timer = rospy.Timer(rospy.Duration(period), self._sample)
 
-    def _on_truth(self, msg: Odometry) -> None:
-        p = msg.pose.pose
-        with self._lock:
-            self._history.append((msg.header.stamp.to_sec(), p.position.x, p.position.y,
-                                  yaw_from_quaternion(p.orientation.x, p.orientation.y, p.orientation.z,
-                                                      p.orientation.w)))
-
     def _sample(self, _event) -> None:
-        try:
-            tfm = self.buffer.lookup_transform(*self.frames, rospy.Time(0))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+        stamped = latest_pose(self.buffer, *self.frames)
+        if stamped is None:
             return                      # SLAM not up yet
-        t = tfm.header.stamp.to_sec()
+        t, estimate = stamped
+        truth = self._history.at(t)
         with self._lock:
-            truth = pose_at(list(self._history), t)
             if truth is None or (self.samples and t <= self.samples[-1][0]):
                 return                  # no truth at that stamp, or nothing new (a stale tf)
-            tr, q = tfm.transform.translation, tfm.transform.rotation
-            self.samples.append((t, Pose2D(tr.x, tr.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)), Pose2D(*truth)))
+            self.samples.append((t, estimate, Pose2D(*truth)))
 
     def close(self) -> None:
         self._timer.shutdown()
