@@ -88,19 +88,17 @@ class PluginDrive(unittest.TestCase):
         with r.lock:
             r.cmd = None
         t1 = r.now()
-        gt1 = r.between("gt", t1 - 0.05, t1)[-1]
-        od1 = r.between("odom", t1 - 0.05, t1)[-1]
+        gt1, od1 = r.at("gt", t1), r.at("odom", t1)
         dist = float(np.linalg.norm(xy(gt1) - xy(gt0)))
         self.assertAlmostEqual(dist, 1.0, delta=0.05, msg=f"ground truth moved {dist:.3f} m in 5 s at 0.2 m/s")
         odist = float(np.linalg.norm(xy(od1) - xy(od0)))
         self.assertLess(abs(odist - dist) / dist, 0.02, f"odom {odist:.4f} m vs ground truth {dist:.4f} m")
         # still moving before the 0.6 s timeout, stopped after it
         r.wait_until(t1 + 0.3)
-        v_before = r.between("gt", t1 + 0.25, t1 + 0.3)[-1].twist.twist.linear.x
+        v_before = r.at("gt", t1 + 0.3).twist.twist.linear.x
         self.assertGreater(v_before, 0.15, "robot stopped before the 0.6 s command timeout")
         r.wait_until(t1 + 1.2)
-        a = r.between("gt", t1 + 0.95, t1 + 1.0)[-1]
-        b = r.between("gt", t1 + 1.15, t1 + 1.2)[-1]
+        a, b = r.at("gt", t1 + 1.0), r.at("gt", t1 + 1.2)
         self.assertLess(np.linalg.norm(xy(b) - xy(a)), 0.002, "robot still moving 1 s after the last cmd_vel")
         self.assertLess(abs(b.twist.twist.linear.x), 0.01)
 

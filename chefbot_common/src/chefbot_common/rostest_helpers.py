@@ -97,3 +97,16 @@ class SimRecorder(SimClockWaits):
         """The newest message of ``key`` stamped after ``after`` s (waits for one)."""
         self.wait_for(lambda: bool(self.between(key, after)), f"{key} stamped after t={after:.2f}")
         return self.between(key, after)[-1]
+
+    def at(self, key: str, t: float, window: float = 0.05):
+        """The newest message of ``key`` stamped in [t - window, t] s.
+
+        A topic's messages can arrive after /clock has passed their stamps, so
+        this first waits for one stamped later than ``t``: every earlier one is
+        in by then.  AssertionError, naming the gap, if none lies in the window.
+        """
+        self.wait_for(lambda: self.between(key, math.nextafter(t, math.inf)), f"{key} stamped after t={t:.2f}")
+        found = self.between(key, t - window, t)
+        if not found:
+            raise AssertionError(f"no {key} message stamped in [{t - window:.2f}, {t:.2f}] s")
+        return found[-1]
