@@ -23,6 +23,7 @@ sim may run slower or faster than real time).
 """
 from __future__ import annotations
 
+import re
 import subprocess
 import threading
 import time
@@ -51,27 +52,40 @@ class WorkflowError(RuntimeError):
     """A stage of the workflow failed; the message says which and why."""
 
 
+class NodeLog:
+    """A node's own log lines (those starting with ``prefix``) from ``/rosout_agg``, as they come."""
+
+    def __init__(self, node: str, prefix: str) -> None:
+        self.node, self.prefix = node, prefix
+        self.lines: list[str] = []
+        self._lock = threading.Lock()
+        self._sub = rospy.Subscriber("/rosout_agg", Log, self._on_log, queue_size=100)
+
+    def _on_log(self, msg: Log) -> None:
+        if msg.name == self.node and msg.msg.startswith(self.prefix):
+            with self._lock:
+                self.lines.append(msg.msg)
+
+    def since(self, shown: int) -> tuple[list[str], int]:
+        """The lines after the first ``shown``, and the count so far."""
+        with self._lock:
+            return self.lines[shown:], len(self.lines)
+
+    def close(self) -> None:
+        self._sub.unregister()
+
+
 class ExploreWatch:
     """Follows the ``explore`` node: its log lines (``explore: ...``) and its latched ``explore/done``."""
 
     def __init__(self, node: str = "/explore") -> None:
         self.node = node
         self.done: bool | None = None
-        self.lines: list[str] = []
-        self.t_start: float | None = None      # sim s of explore's first line
-        self._lock = threading.Lock()
-        self._subs = [rospy.Subscriber(f"{node}/done", Bool, self._on_done, queue_size=1),
-                      rospy.Subscriber("/rosout_agg", Log, self._on_log, queue_size=100)]
+        self.log = NodeLog(node, "explore:")
+        self._sub = rospy.Subscriber(f"{node}/done", Bool, self._on_done, queue_size=1)
 
     def _on_done(self, msg: Bool) -> None:
         self.done = bool(msg.data)
-
-    def _on_log(self, msg: Log) -> None:
-        if msg.name == self.node and msg.msg.startswith("explore:"):
-            with self._lock:
-                if self.t_start is None:
-                    self.t_start = msg.header.stamp.to_sec()
-                self.lines.append(msg.msg)
 
     def wait(self, timeout_wall: float, alive: Callable[[], bool] = lambda: True,
              echo: Callable[[str], None] | None = None) -> bool:
@@ -80,8 +94,7 @@ class ExploreWatch:
         Raises WorkflowError when the wall-clock timeout runs out or ``alive()`` turns false."""
         deadline, shown, next_check = time.monotonic() + timeout_wall, 0, 0.0
         while self.done is None:
-            with self._lock:
-                new, shown = self.lines[shown:], len(self.lines)
+            new, shown = self.log.since(shown)
             for line in new if echo else []:
                 echo(line)
             if not alive():
@@ -95,20 +108,19 @@ class ExploreWatch:
                 raise WorkflowError(f"exploration did not end within {timeout_wall:.0f} s wall time")
             time.sleep(0.2)
         time.sleep(0.5)                 # explore logs its final line just before publishing done
-        with self._lock:
-            new = self.lines[shown:]
+        new, _ = self.log.since(shown)
         for line in new if echo else []:
             echo(line)
         return self.done
 
     def final_line(self) -> str:
         """explore's ``explore: finished (...)`` line, or "" when none came."""
-        with self._lock:
-            return next((ln for ln in reversed(self.lines) if ln.startswith("explore: finished")), "")
+        lines, _ = self.log.since(0)
+        return next((ln for ln in reversed(lines) if ln.startswith("explore: finished")), "")
 
     def close(self) -> None:
-        for sub in self._subs:
-            sub.unregister()
+        self._sub.unregister()
+        self.log.close()
 
 
 class SlamTrack:
@@ -171,6 +183,25 @@ def track_figures(samples: list[tuple[float, Pose2D, Pose2D]], map_in_world: Pos
             "live_ate_rms_m": ate_rms(est[:, :2], truth[:, :2]),
             "track": {"t": np.round(t - t[0], 2).tolist(), "estimate": np.round(est, 4).tolist(),
                       "truth": np.round(truth, 4).tolist()}}
+
+
+_CLOSURE = re.compile(r"loop closure keyframe \d+ -> \d+: corrected ([\d.]+) m, ([\d.]+) deg \(([^)]*)\)")
+
+
+def slam_events_summary(lines: list[str]) -> str:
+    """One line on the slam node's events (its ``slam: ...`` log lines): how many loop closures and the
+    largest, dropped loop matches, large scan-matcher corrections and scan-loss warnings."""
+    closures = [(float(m[1]), float(m[2]), m[3]) for m in map(_CLOSURE.search, lines) if m]
+    parts = [f"{len(closures)} loop closure{'s' * (len(closures) != 1)}"]
+    if closures:
+        d, a, how = max(closures)
+        parts[0] += f" (largest {d:.3f} m / {a:.1f} deg: {how})"
+    for what, key in (("loop match(es) dropped", "dropped:"), ("large correction(s)", "large correction"),
+                      ("scan-loss warning(s)", "falling behind")):
+        n = sum(key in ln for ln in lines)
+        if n:
+            parts.append(f"{n} {what}")
+    return "slam: " + ", ".join(parts)
 
 
 def save_map(prefix: Path, env: dict | None = None, timeout: float = 120.0) -> OccupancyMap:

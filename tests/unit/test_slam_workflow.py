@@ -88,3 +88,18 @@ def test_track_figures_give_the_live_error_in_the_registered_frame_and_the_fitte
     assert 0.0 < f["live_ate_rms_m"] < f["live_error_rms_m"]             # a best fit can only do better
     assert len(f["track"]["t"]) == 40 and f["track"]["truth"][5] == pytest.approx([0.5, 0.0, 0.25], abs=1e-4)
     assert wf.track_figures(samples[:1], frame) == {"track_samples": 1}
+
+
+def test_slam_events_summary_names_the_largest_closure_and_counts_the_rest() -> None:
+    lines = ["slam: mapping at 0.050 m/cell, frames map -> odom -> base_footprint",
+             "slam: loop closure keyframe 12 -> 3: corrected 0.041 m, 1.2 deg (score 0.97, fit before 0.81)",
+             "slam: loop closure keyframe 30 -> 5: corrected 0.425 m, 9.4 deg (score 0.78, fit before 0.37, "
+             "recentred 1x)",
+             "slam: loop match keyframe 31 dropped: still on the search window's edge after 2 searches around it, "
+             "0.612 m off (score 0.70)",
+             "slam: large correction at scan 400: 0.120 m, 2.0 deg off the odometry (score 0.90)",
+             "slam: large correction at scan 410: 0.110 m, 1.0 deg off the odometry (score 0.90)"]
+    assert wf.slam_events_summary(lines) == (
+        "slam: 2 loop closures (largest 0.425 m / 9.4 deg: score 0.78, fit before 0.37, recentred 1x), "
+        "1 loop match(es) dropped, 2 large correction(s)")
+    assert wf.slam_events_summary([]) == "slam: 0 loop closures"
