@@ -17,6 +17,8 @@ Shared by ``make demo SLAM=1`` (tools/slam_demo.py) and the slam_workflow rostes
    map's pose in the world (``map_align.align_maps``, align_tables' registration);
 7. :class:`SlamTrack` (test oracle: reads ``ground_truth/odom``) records SLAM's live pose
    next to the truth while mapping, for the trajectory error of the run.
+8. :class:`NodeLog` keeps a node's own log lines (explore's progress, slam's loop closures),
+   :func:`slam_events_summary` sums up the latter in one line for a failure message.
 
 Needs rospy initialised on the launch's master; wall-clock timeouts throughout (the
 sim may run slower or faster than real time).

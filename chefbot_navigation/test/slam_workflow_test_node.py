@@ -96,8 +96,9 @@ class SlamWorkflowTest(unittest.TestCase):
         missed = [f"{k} {v:.3f} not {op} {bound}" for k, (v, op, bound) in bounds.items()
                   if not (v > bound if op == ">" else v < bound)]
         if missed:   # the first line is what the test runner shows: the bounds missed and the loop closures
-            self.fail(f"map or pose out of bounds: {'; '.join(missed)}; {slam_events_summary(events)}\n" +
-                      "\n".join(events))
+            self.fail(f"map or pose out of bounds: {'; '.join(missed)}; SLAM's live pose off by up to "
+                      f"{100 * live['live_error_max_m']:.1f} cm at {live['live_error_max_at_s']:.0f} s, heading "
+                      f"{live['live_yaw_error_max_deg']:.1f} deg; {slam_events_summary(events)}\n" + "\n".join(events))
         # 3. SLAM stops; map_server serves the saved file as `map` (the same grid); amcl starts at SLAM's last pose
         start = slam_pose(track.buffer)
         stop_mapping()
