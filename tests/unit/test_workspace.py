@@ -110,3 +110,28 @@ def test_no_merge_conflict_markers() -> None:
     if out.returncode not in (0, 1):
         pytest.skip(f"not a git checkout: {out.stderr.strip()}")
     assert out.stdout == "", f"conflict markers:\n{out.stdout}"
+
+
+def _rospy_nodes() -> list[Path]:
+    """The node executables (python scripts under */nodes) that call rospy.init_node with rospy's
+    signal handlers (not the Qt GUIs, which disable them, nor the tools that are no nodes)."""
+    return sorted(p for p in ROOT.glob("chefbot_*/nodes/*")
+                  if p.is_file() and p.read_bytes().startswith(b"#!/usr/bin/env python3")
+                  and "rospy.init_node(" in (src := p.read_text()) and "disable_signals=True" not in src)
+
+
+@pytest.mark.parametrize("script", _rospy_nodes(), ids=lambda p: f"{p.parent.parent.name}/{p.name}")
+def test_nodes_stop_quietly_while_starting(script: Path) -> None:
+    """A rospy node that keeps rospy's signal handling imports chefbot_common.quiet_interrupt before
+    anything else and ends with ``quiet_interrupt.run(main)``: stopped by roslaunch anywhere in its
+    startup it exits by itself without a traceback (tests/test/node_stop.test shows why)."""
+    tree = ast.parse(script.read_text())
+    imports = [n for n in tree.body if isinstance(n, ast.Import)
+               or isinstance(n, ast.ImportFrom) and n.module != "__future__"]
+    first = imports[0]
+    assert isinstance(first, ast.ImportFrom) and first.module == "chefbot_common" \
+        and [a.name for a in first.names] == ["quiet_interrupt"], \
+        f"{script.name}: the first import is not 'from chefbot_common import quiet_interrupt'"
+    last = tree.body[-1]
+    assert isinstance(last, ast.If) and ast.unparse(last.body[-1]) == "quiet_interrupt.run(main)", \
+        f"{script.name}: does not end with 'if __name__ == \"__main__\": quiet_interrupt.run(main)'"

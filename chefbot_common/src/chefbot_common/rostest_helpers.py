@@ -1,4 +1,4 @@
-"""Waiting scaffolding shared by the rostest nodes (pure: no rospy import).
+"""Waiting scaffolding shared by the rostest nodes (pure: no rospy import), and reading a child's output.
 
 Every wait has a wall-clock deadline, so a test fails with a message naming
 what it waited for instead of hanging when the simulation stalls, and it
@@ -21,6 +21,13 @@ def wait_for(cond: Callable[[], object], timeout: float, what: str,
         if time.monotonic() > deadline or (stop is not None and stop()):
             raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
         time.sleep(poll)
+
+
+def first_traceback(out: str, chars: int = 1500) -> str:
+    """The first Python traceback in a process's output, up to ``chars`` characters from its first
+    line (what a test's failure line should show, not the output's tail), or "" when there is none."""
+    at = out.find("Traceback (most recent call last)")
+    return "" if at < 0 else out[at:at + chars]
 
 
 class SimClockWaits:

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from chefbot_common.rostest_helpers import SimRecorder
+from chefbot_common.rostest_helpers import SimRecorder, first_traceback
 
 
 def msg(stamp: float) -> SimpleNamespace:
@@ -41,3 +41,10 @@ def test_at_times_out_naming_the_topic_when_it_never_passes_the_time() -> None:
     r.add("gt", msg(0.99))
     with pytest.raises(AssertionError, match="gt stamped after t=1.00"):
         r.at("gt", 1.0)
+
+
+def test_first_traceback_starts_at_the_traceback() -> None:
+    out = "roslaunch noise\n" * 100 + "Traceback (most recent call last):\n  File x\nKeyError: 'a'\n" + "tail\n" * 50
+    assert first_traceback(out).startswith("Traceback (most recent call last):\n  File x\nKeyError: 'a'")
+    assert len(first_traceback(out, 40)) == 40
+    assert first_traceback("all well\n") == ""
