@@ -44,6 +44,7 @@ from std_msgs.msg import Bool
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_common.grid import OccupancyMap
 from chefbot_common.map_io import load_map
+from chefbot_navigation.slam.mapper import EVENT_CLOSURE, EVENT_CORRECTION, EVENT_DROPPED
 from chefbot_navigation.slam.metrics import ate_rms
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -187,18 +188,22 @@ def track_figures(samples: list[tuple[float, Pose2D, Pose2D]], map_in_world: Pos
                       "truth": np.round(truth, 4).tolist()}}
 
 
-_CLOSURE = re.compile(r"loop closure keyframe \d+ -> \d+: corrected ([\d.]+) m, ([\d.]+) deg \(([^)]*)\)")
+_CLOSURE = re.compile(rf"{EVENT_CLOSURE} \d+ -> \d+: corrected ([\d.]+) m, ([\d.]+) deg \(([^)]*)\)")
 
 
 def slam_events_summary(lines: list[str]) -> str:
     """One line on the slam node's events (its ``slam: ...`` log lines): how many loop closures and the
-    largest, dropped loop matches, large scan-matcher corrections and scan-loss warnings."""
-    closures = [(float(m[1]), float(m[2]), m[3]) for m in map(_CLOSURE.search, lines) if m]
-    parts = [f"{len(closures)} loop closure{'s' * (len(closures) != 1)}"]
+    largest, dropped loop matches, large scan-matcher corrections and scan-loss warnings.  Lines are
+    counted by the mapper's own event prefixes; a closure whose figures do not parse is still counted."""
+    found = [ln for ln in lines if EVENT_CLOSURE in ln]
+    closures = [(float(m[1]), float(m[2]), m[3]) for m in map(_CLOSURE.search, found) if m]
+    parts = [f"{len(found)} loop closure{'s' * (len(found) != 1)}"]
     if closures:
         d, a, how = max(closures)
         parts[0] += f" (largest {d:.3f} m / {a:.1f} deg: {how})"
-    for what, key in (("loop match(es) dropped", "dropped:"), ("large correction(s)", "large correction"),
+    if len(closures) < len(found):
+        parts.append(f"{len(found) - len(closures)} closure line(s) not understood: {found[0][:160]}")
+    for what, key in (("loop match(es) dropped", EVENT_DROPPED), ("large correction(s)", EVENT_CORRECTION),
                       ("scan-loss warning(s)", "falling behind")):
         n = sum(key in ln for ln in lines)
         if n:

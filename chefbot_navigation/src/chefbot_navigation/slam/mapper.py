@@ -56,6 +56,10 @@ LARGE_CORRECTION_YAW = math.radians(3.0)
 # a loop match whose best pose lies on the search window's edge is searched for again around itself this
 # often; still on the edge, it has no maximum and is dropped (Slam._close_loop)
 LOOP_RECENTRES = 2
+# how Slam.stats.events lines begin (tools/slam_workflow.py counts them by these)
+EVENT_CLOSURE = "loop closure keyframe"
+EVENT_DROPPED = "loop match keyframe"
+EVENT_CORRECTION = "large correction at scan"
 
 
 @dataclass
@@ -341,7 +345,7 @@ class Slam:
         if moved > LARGE_CORRECTION_XY or turned > LARGE_CORRECTION_YAW:
             # for the log: a wrong match that slips the map starts as one of these (widened windows
             # alone are routine: 3 sigma of a spin's odometry prior exceeds match_yaw)
-            self.stats.events.append(f"large correction at scan {self.stats.scans}: {moved:.3f} m, "
+            self.stats.events.append(f"{EVENT_CORRECTION} {self.stats.scans}: {moved:.3f} m, "
                                      f"{math.degrees(turned):.1f} deg off the odometry (score {res.score:.2f}, "
                                      f"window {wxy:.2f} m / {math.degrees(wyaw):.0f} deg"
                                      f"{', widened' if frac > 0 else ''})")
@@ -429,7 +433,7 @@ class Slam:
             recentred += 1
         if res.on_border and res.score >= c.loop_min_score:
             self.stats.loop_no_maximum += 1
-            self.stats.events.append(f"loop match keyframe {cur} dropped: still on the search window's edge after "
+            self.stats.events.append(f"{EVENT_DROPPED} {cur} dropped: still on the search window's edge after "
                                      f"{recentred} searches around it, {res.pose.distance(pose):.3f} m off "
                                      f"(score {res.score:.2f})")
             return
@@ -463,7 +467,7 @@ class Slam:
             return          # consistent already: keep the edge for later optimisations
         self.graph.optimize()
         self.stats.optimisations += 1
-        self.stats.events.append(f"loop closure keyframe {cur} -> {anchor}: corrected {err:.3f} m, "
+        self.stats.events.append(f"{EVENT_CLOSURE} {cur} -> {anchor}: corrected {err:.3f} m, "
                                  f"{math.degrees(abs(wrap_angle(res.pose.yaw - pose.yaw))):.1f} deg "
                                  f"(score {res.score:.2f}, fit before {fit:.2f}"
                                  f"{f', recentred {recentred}x' if recentred else ''}"
