@@ -11,7 +11,7 @@ origin, so the SLAM map frame (odom at the first scan) is the world frame.
 
 Noise switch: ``noise=True`` multiplies the recorded odometry's error with an
 extra wheel model (OdometryNoise: 2 % scale bias, 5 % rotation bias, random
-per-scan errors, 0.02 rad/m heading drift) - the bench reports both.
+per-scan errors, 0.02 rad/m heading drift) - the bench reports both, the noise with three seeds.
 
     python chefbot_navigation/bench/bench_slam.py [--quick] [--bag BAG]
 
@@ -71,9 +71,13 @@ def _row(case: str, metric: str, ours: float, goal: str | None, met: bool | None
 def run(quick: bool = False, bag: Path = BAG) -> list[dict]:
     """Benchmark rows (see tools/bench.py)."""
     rows: list[dict] = []
-    variants = [("recorded odometry", False)] if quick else [("recorded odometry", False), ("extra wheel noise", True)]
-    for name, noise in variants:
-        sm = evaluate(bag, SlamConfig(), noise)
+    # the extra noise is random: three seeds (one can be lucky or unlucky: seed 1 of the 2026-11-24
+    # bench was the best of the three with turn calibration off and the worst with it on)
+    variants = [("recorded odometry", False, 1)]
+    if not quick:
+        variants += [(f"extra wheel noise seed {seed}", True, seed) for seed in (1, 2, 3)]
+    for name, noise, seed in variants:
+        sm = evaluate(bag, SlamConfig(), noise, seed)
         case = f"hotel route 325 s, {name}"
         rows.append(_row(case, "offline speed (x real time)", sm["speedup"], ">= 5", sm["speedup"] >= 5))
         rows.append(_row(case, "GT occupied matched within 1 cell (%)", sm["matched"], ">= 95", sm["matched"] >= 95))
@@ -82,6 +86,8 @@ def run(quick: bool = False, bag: Path = BAG) -> list[dict]:
         rows.append(_row(case, "ATE RMS (m)", sm["ate"], "<= 0.05", sm["ate"] <= 0.05, 0.07,
                          "GMapping, Intel lab (Kuemmerle 2009)"))
         rows.append(_row(case, "loop closures", sm["loops"], None, None))
+        if seed != 1:
+            continue        # the comparisons: once per odometry
         raw = evaluate(bag, SlamConfig(scan_matching=False, loop_closure=False), noise)
         case_raw = f"{case}, scan matching OFF"
         rows.append(_row(case_raw, "GT occupied matched within 1 cell (%)", raw["matched"], None, None))

@@ -40,7 +40,7 @@ def short_bag(tmp_path_factory) -> Path:
 def test_cli_writes_map_and_tum_trajectory(short_bag, tmp_path):
     prefix, traj = tmp_path / "m", tmp_path / "traj.txt"
     r = subprocess.run([sys.executable, str(NODE), str(short_bag), str(prefix), "--trajectory", str(traj),
-                        "--refine", "1", "--turn-calibration"], capture_output=True, text=True, timeout=300)
+                        "--refine", "1", "--no-turn-calibration"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "x real time" in r.stdout and "%" in r.stderr            # summary + progress bar
     occ = load_map(f"{prefix}.yaml")

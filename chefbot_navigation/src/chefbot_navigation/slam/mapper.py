@@ -85,8 +85,8 @@ class SlamConfig:
     srt: float = 0.05                    # m/rad, translation error per radian turned
     str: float = 0.1                     # rad/m, rotation error per metre driven
     stt: float = 0.3                     # rad/rad, rotation error per radian turned (wheel slip)
-    turn_calibration: bool = False       # learn the odometry's turn scale from matched spins (wheel slip)
-    turn_calibration_min: float = 3.0    # rad of matched in-place turning before the learned scale is used
+    turn_calibration: bool = True        # learn the odometry's turn scale from matched spins (wheel slip)
+    turn_calibration_min: float = 6.0    # rad of matched in-place turning before the learned scale is used
     turn_scale_limit: float = 0.15       # the learned scale stays within 1 +- this
     beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
