@@ -131,6 +131,10 @@ class LayeredCostmap:
             static[data < 0] = NO_INFORMATION
         self.static = static
         self.obstacles = np.zeros(occ.data.shape, dtype=bool)
+        # cells a scan ray has passed through: an unknown static cell among them counts as free (as
+        # costmap_2d's obstacle layer writes FREE over the static layer's unknown; a SLAM map's small
+        # unseen holes in an aisle would otherwise block the footprint check for good)
+        self.seen_free = np.zeros(occ.data.shape, dtype=bool)
         # 3-D obstacles of the point-cloud source (pointcloud_layer.PointCloudLayer, set by move_base):
         # kept apart from the scan's marks so that scan rays passing under a table top do not clear it
         self.cloud_layer = None
@@ -145,8 +149,9 @@ class LayeredCostmap:
 
     # --- obstacle layer -------------------------------------------------------------------------
     def clear_obstacles(self) -> None:
-        """Forget every scan obstacle (recovery 'clear costmaps')."""
+        """Forget every scan obstacle and every cell seen free (recovery 'clear costmaps')."""
         self.obstacles[:] = False
+        self.seen_free[:] = False
         if self.cloud_layer is not None:
             self.cloud_layer.clear()
         self._master = None
@@ -180,6 +185,7 @@ class LayeredCostmap:
             row, col = self.info.world_to_cell(xs[keep], ys[keep])
             inside = self.info.inside(row, col)
             self.obstacles[row[inside], col[inside]] = False
+            self.seen_free[row[inside], col[inside]] = True
         mark = valid & (r <= p.obstacle_range)
         if mark.any():
             hx = sensor.x + np.cos(angles[mark]) * r[mark]
@@ -198,10 +204,15 @@ class LayeredCostmap:
 
     # --- combined -------------------------------------------------------------------------------
     def base(self) -> np.ndarray:
-        """Static layer with scan obstacles, before inflation."""
-        out = self.static.copy()
-        out[self._all_obstacles()] = LETHAL
-        return out
+        """Static layer with scan obstacles and the unknown cells scans saw free, before inflation."""
+        return self._sensed(self.static.copy(), slice(None), slice(None))
+
+    def _sensed(self, static: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+        """``static`` (the static layer's ``[rows, cols]``) with what the sensors saw: unknown cells a
+        ray passed through become free, obstacle cells lethal."""
+        static[(static == NO_INFORMATION) & self.seen_free[rows, cols]] = FREE_SPACE
+        static[self._all_obstacles()[rows, cols]] = LETHAL
+        return static
 
     def master(self) -> Costmap:
         """The inflated global costmap (cached until the layers change)."""
@@ -230,7 +241,7 @@ class LayeredCostmap:
         if sr0 < sr1 and sc0 < sc1:
             static = self.static[sr0:sr1, sc0:sc1].copy()
             if not static_only:
-                static[self._all_obstacles()[sr0:sr1, sc0:sc1]] = LETHAL
+                static = self._sensed(static, slice(sr0, sr1), slice(sc0, sc1))
             pad[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0] = static
         cost = inflate(pad, res, self.params)[margin:margin + h, margin:margin + w]
         ox = self.info.origin_x + c0 * res

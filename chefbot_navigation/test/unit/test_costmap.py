@@ -94,6 +94,27 @@ def test_static_obstacles_survive_clearing() -> None:
     assert lc.master().cost[50, 80] == LETHAL
 
 
+def test_unknown_static_cells_a_ray_passes_through_count_as_free() -> None:
+    """A SLAM map's unseen hole in an aisle (two unknown cells) stops blocking once a scan has seen
+    through it, in the global costmap and in the controller's window; a hit there is an obstacle;
+    'clear costmaps' forgets what was seen (as costmap_2d's obstacle layer over its static layer)."""
+    occ = empty()
+    occ.data[50, 60:62] = -1                   # (3.0-3.1, 2.5): unknown
+    occ.data[70, 60] = -1                      # (3.0, 3.5): unknown, off the ray
+    lc = LayeredCostmap(occ, CostmapParams(robot_radius=0.1, inflation_radius=0.3))
+    assert (lc.master().cost[50, 60:62] == NO_INFORMATION).all()
+    lc.update_scan(Pose2D(0.5, 2.5, 0.0), np.array([np.inf]), 0.0, 0.1, 0.1, 4.0)
+    assert (lc.master().cost[50, 60:62] == 0).all() and lc.master().cost[70, 60] == NO_INFORMATION
+    win = lc.window(3.0, 2.5, 1.0, 1.0)
+    r, c = win.info.world_to_cell(3.02, 2.52)
+    assert win.cost[r, c] == 0
+    assert lc.window(3.0, 2.5, 1.0, 1.0, static_only=True).cost[r, c] == NO_INFORMATION
+    lc.update_scan(Pose2D(1.5, 2.5, 0.0), np.array([1.52]), 0.0, 0.1, 0.1, 4.0)   # something stands there
+    assert lc.master().cost[50, 60] == LETHAL
+    lc.clear_obstacles()
+    assert (lc.master().cost[50, 60:62] == NO_INFORMATION).all()
+
+
 def test_window_matches_global_costmap() -> None:
     occ = empty()
     occ.data[40:45, 40:45] = 100
