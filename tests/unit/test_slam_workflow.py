@@ -13,8 +13,7 @@ from chefbot_common.geometry import Pose2D
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_common.map_io import load_map
 from chefbot_navigation.slam.mapper import Slam, SlamConfig
-from chefbot_navigation.slam.scan import scan_from_ranges
-from chefbot_navigation.slam.synthetic import cast, noisy_odometry, square_corridor, square_route
+from chefbot_navigation.slam.synthetic import drive_square_corridor
 
 ROOT = Path(__file__).resolve().parents[2]
 ROOM_MAP = ROOT / "tests" / "test" / "worlds" / "slam_room_map.yaml"
@@ -114,13 +113,8 @@ def test_slam_events_summary_names_the_largest_closure_and_counts_the_rest() -> 
 def test_slam_events_summary_reads_the_mappers_own_events() -> None:
     """The events a real Slam run writes (the square-corridor loop closure of chefbot_navigation's unit
     tests) are counted as the run counted them: the summary follows the mapper's wording."""
-    segs, truth = square_corridor(), square_route(laps=2.0)
-    odom = noisy_odometry(truth, np.random.default_rng(3), yaw_bias=0.006)
     slam = Slam(SlamConfig(scan_matching=False, loop_min_travel=8.0, loop_xy=0.6, loop_yaw=0.3))
-    angles = -math.pi / 2 + math.pi * np.arange(180) / 180
-    for k, (tp, op) in enumerate(zip(truth, odom, strict=True)):
-        r = cast(segs, (tp.x, tp.y), angles + tp.yaw, 6.0)
-        slam.add_scan(0.1 * k, scan_from_ranges(r, -math.pi / 2, math.pi / 180, 0.05, 6.0, Pose2D(), 5.5), op)
+    drive_square_corridor(slam, seed=3, yaw_bias=0.006)
     assert slam.stats.optimisations >= 1, slam.stats
     summary = wf.slam_events_summary([f"slam: {e}" for e in slam.stats.events])
     assert summary.startswith(f"slam: {slam.stats.optimisations} loop closure"), (summary, slam.stats.events)

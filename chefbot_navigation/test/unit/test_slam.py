@@ -13,7 +13,12 @@ from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
 from chefbot_navigation.slam.pose_graph import PoseGraph
 from chefbot_navigation.slam.scan import ScanError, scan_from_ranges, transform_points
 from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
-from chefbot_navigation.slam.synthetic import box_segments, cast, noisy_odometry, square_corridor, square_route
+from chefbot_navigation.slam.synthetic import (
+    box_segments,
+    cast,
+    drive_square_corridor,
+    square_route,
+)
 
 
 # ---------------------------------------------------------------- ray casting / log-odds
@@ -141,15 +146,8 @@ def test_pose_graph_distributes_loop_error():
 # ---------------------------------------------------------------- whole SLAM
 def _run_corridor(cfg: SlamConfig, seed: int = 3, yaw_bias: float = 0.02):
     """Two laps of the square corridor with a 180 deg, 6 m lidar and drifting odometry."""
-    segs = square_corridor()
-    truth = square_route(laps=2.0)
-    odom = noisy_odometry(truth, np.random.default_rng(seed), yaw_bias=yaw_bias)
     slam = Slam(cfg)
-    n, fov, rmax = 180, math.pi, 6.0
-    angles = -fov / 2 + fov * np.arange(n) / n
-    for k, (tp, op) in enumerate(zip(truth, odom, strict=True)):
-        r = cast(segs, (tp.x, tp.y), angles + tp.yaw, rmax)
-        slam.add_scan(0.1 * k, scan_from_ranges(r, -fov / 2, fov / n, 0.05, rmax, Pose2D(), 5.5), op)
+    segs, truth, odom = drive_square_corridor(slam, seed, yaw_bias)
     est = slam.trajectory()
     err = np.array([p.distance(q) for (_, p), q in zip(est, truth, strict=True)])
     odo_err = np.array([p.distance(q) for p, q in zip(odom, truth, strict=True)])

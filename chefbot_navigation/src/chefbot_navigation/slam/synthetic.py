@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from chefbot_common.geometry import Pose2D
+from chefbot_navigation.slam.scan import scan_from_ranges
 
 
 def box_segments(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
@@ -76,6 +77,20 @@ def square_route(side: float = 8.0, width: float = 1.6, laps: float = 2.0, step:
             poses.append(Pose2D(x1, y1, yaw + (math.pi / 2) * i / 10))
     return poses
 
+
+
+def drive_square_corridor(slam, seed: int = 3, yaw_bias: float = 0.02) -> tuple[np.ndarray, list[Pose2D], list[Pose2D]]:
+    """Feed ``slam`` (a ``Slam``: ``add_scan(t, scan, odom)``) two laps of :func:`square_corridor` seen by
+    a 180 deg, 6 m lidar with :func:`noisy_odometry` (``seed``, ``yaw_bias``), one scan per 0.1 s;
+    returns (segments, true poses, odometry poses)."""
+    segs, truth = square_corridor(), square_route(laps=2.0)
+    odom = noisy_odometry(truth, np.random.default_rng(seed), yaw_bias=yaw_bias)
+    n, fov, rmax = 180, math.pi, 6.0
+    angles = -fov / 2 + fov * np.arange(n) / n
+    for k, (tp, op) in enumerate(zip(truth, odom, strict=True)):
+        r = cast(segs, (tp.x, tp.y), angles + tp.yaw, rmax)
+        slam.add_scan(0.1 * k, scan_from_ranges(r, -fov / 2, fov / n, 0.05, rmax, Pose2D(), 5.5), op)
+    return segs, truth, odom
 
 class OdometryNoise:
     """Stateful filter ``f(t, pose) -> pose`` adding wheel-odometry error to a stream of odometry poses.
