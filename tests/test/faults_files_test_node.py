@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
-import subprocess
 import tempfile
 import unittest
 from pathlib import Path
@@ -24,29 +22,11 @@ import rospkg
 import rospy
 import rostest
 
-from chefbot_common.rostest_helpers import first_traceback
+from chefbot_common.rostest_helpers import first_traceback, run_in_group
 
 PKG = "chefbot_tests"
 TIMEOUT = 90.0      # s wall per case: the launch must have ended by itself by then
 ROOT = Path(rospkg.RosPack().get_path("chefbot_tests")).parent
-
-
-def run(cmd: list[str], env: dict[str, str] | None = None) -> tuple[int | None, str]:
-    """Run ``cmd`` in its own process group; (exit status or None if still running, output). Never leaks."""
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            start_new_session=True, env=env)
-    try:
-        out, _ = proc.communicate(timeout=TIMEOUT)
-        rc: int | None = proc.returncode
-    except subprocess.TimeoutExpired:
-        rc, out = None, b""
-    finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)    # whatever the launch left behind
-        except ProcessLookupError:
-            pass
-        proc.wait()
-    return rc, out.decode(errors="replace")
 
 
 class FaultsFilesTest(unittest.TestCase):
@@ -77,7 +57,7 @@ class FaultsFilesTest(unittest.TestCase):
         """``required``: the launch's required node that must die on the file.  roslaunch itself exits 0
         when a required node dies (ROS 1's roslaunch, not ours), so then the node's own exit code is
         checked in roslaunch's "REQUIRED process ... has died" report, and that the launch ended."""
-        rc, out = run(cmd, env)
+        rc, out = run_in_group(cmd, TIMEOUT, env)
         tail = out[-1500:]
         died = re.search(rf"REQUIRED process \[{required}-\d+\] has died!\s*process has died \[pid \d+, "
                          rf"exit code (-?\d+)", out) if required else None

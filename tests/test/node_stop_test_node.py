@@ -18,8 +18,6 @@ unit tests.
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import unittest
@@ -27,7 +25,7 @@ import unittest
 import rospy
 import rostest
 
-from chefbot_common.rostest_helpers import first_traceback
+from chefbot_common.rostest_helpers import first_traceback, run_in_group
 
 PKG = "chefbot_tests"
 TIMEOUT = 20.0    # s wall: a child that has not ended by then is hung
@@ -72,25 +70,13 @@ PLAIN = "\nquiet_interrupt.restore()\nsys.exit(main())\n"
 
 
 def run_child(source: str, timeout: float = TIMEOUT) -> tuple[int | None, str]:
-    """Run ``source`` as a Python node in its own process group; (exit status or None if hung, output)."""
+    """Run ``source`` as a Python node (run_in_group); (exit status or None if hung, output)."""
     with tempfile.NamedTemporaryFile("w", suffix=".py", prefix="node_stop_", delete=False) as f:
         f.write(source)
-    proc = subprocess.Popen([sys.executable, f.name], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        out, _ = proc.communicate(timeout=timeout)
-        rc: int | None = proc.returncode
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, _ = proc.communicate()
-        rc = None
+        return run_in_group([sys.executable, f.name], timeout)
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
         os.unlink(f.name)
-    return rc, out.decode(errors="replace")
 
 
 class NodeStopTest(unittest.TestCase):

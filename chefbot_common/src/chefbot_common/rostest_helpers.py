@@ -8,6 +8,9 @@ pass ``stop=rospy.is_shutdown`` so a shutdown ends the wait at once.
 from __future__ import annotations
 
 import math
+import os
+import signal
+import subprocess
 import threading
 import time
 from collections.abc import Callable
@@ -21,6 +24,28 @@ def wait_for(cond: Callable[[], object], timeout: float, what: str,
         if time.monotonic() > deadline or (stop is not None and stop()):
             raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
         time.sleep(poll)
+
+
+def run_in_group(cmd: list[str], timeout: float, env: dict[str, str] | None = None) -> tuple[int | None, str]:
+    """Run ``cmd`` (stdin closed, stderr into stdout) in its own process group: (exit status, or None when
+    it was still running after ``timeout`` s wall, its output).  The whole group is killed afterwards,
+    whatever the command left behind, so a test never leaks it."""
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=True, env=env)
+    rc: int | None = None
+    try:
+        out, _ = proc.communicate(timeout=timeout)
+        rc = proc.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, _ = proc.communicate()
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
+    return rc, out.decode(errors="replace")
 
 
 def first_traceback(out: str, chars: int = 1500) -> str:

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from chefbot_common.rostest_helpers import SimRecorder, first_traceback
+from chefbot_common.rostest_helpers import SimRecorder, first_traceback, run_in_group
 
 
 def msg(stamp: float) -> SimpleNamespace:
@@ -48,3 +48,10 @@ def test_first_traceback_starts_at_the_traceback() -> None:
     assert first_traceback(out).startswith("Traceback (most recent call last):\n  File x\nKeyError: 'a'")
     assert len(first_traceback(out, 40)) == 40
     assert first_traceback("all well\n") == ""
+
+
+def test_run_in_group_returns_status_and_output_and_kills_what_hangs() -> None:
+    assert run_in_group(["bash", "-c", "echo out; echo err >&2; exit 3"], 10.0) == (3, "out\nerr\n")
+    t0 = time.monotonic()
+    rc, out = run_in_group(["bash", "-c", "echo started; sleep 30"], 0.5)
+    assert rc is None and out == "started\n" and time.monotonic() - t0 < 10.0
