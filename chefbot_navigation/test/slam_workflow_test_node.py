@@ -3,7 +3,7 @@
 map_server -> (SLAM stopped) amcl on the saved map, started at SLAM's last pose -> table deliveries judged
 by ground truth.  The stages are tools/slam_workflow.py's, the ones `make demo SLAM=1` runs.
 
-Used by tests/test/slam_workflow.test (small room, in `make test`) and manual/slam_workflow.test (hotel).
+Used by tests/test/slam_workflow.test (small room, in `make test`) and tests/test/slam_workflow_hotel.test (hotel).
 Private params: ``tables`` (tables YAML, world frame; the robot starts at ``home``), ``names`` (tables to
 deliver to), ``truth_map`` (the world raster: the oracle), ``max_explore_s`` (sim s), ``min_coverage``,
 ``min_matched``, ``max_false_occupied`` (0..1), ``max_live_ate`` (m, default 0.10: SLAM's live pose while
@@ -65,6 +65,8 @@ class SlamWorkflowTest(unittest.TestCase):
         took = rospy.get_time() - t0
         track.close()
         self.assertTrue(complete, f"exploration did not complete: {watch.final_line()}")
+        # the node logs reach the test (explore always logs its progress): else the slam summary below lies
+        self.assertGreater(watch.log.since(0)[1], 0, "no 'explore:' log line reached the test on /rosout")
         self.assertLess(took, rospy.get_param("~max_explore_s"), watch.final_line())
         # 2. map_saver -> files; judged against the world raster (oracle)
         # beside the run's node logs (kept as the test's record, removed with the logs)
