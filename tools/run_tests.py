@@ -2,13 +2,15 @@
 """Run every test of the workspace and print one closing line of totals.
 
 Runners:
-  1. the rostest files (``*/test/*.test`` and ``tests/*.test``; not
-     ``test/manual/``) that run in no sim time (error handling, the serial
+  1. the rostest files (``*/test/*.test`` and ``tests/test/*.test``) that run
+     in no sim time (error handling, the serial
      driver on a pty, map_server ...): side by side, as many at once as the
      machine has cores (CHEFBOT_TEST_JOBS overrides);
   2. the rostests that run in sim time (the test or a launch file it includes
      mentions ``use_sim_time``: a simulator paced against the wall clock), one
-     at a time;
+     at a time; a long one (a ``time-limit`` over the runner's timeout, e.g.
+     the hotel SLAM workflow) last, once stage 3 has finished, so that it has
+     the machine to itself;
   3. ``make -C firmware test`` with a bounded fuzz run, then pytest over every
      ``*/test/unit`` directory and ``tests/unit``: from the start, one at a
      time at the lowest CPU priority (``nice 19``) beside stages 1 and 2.
@@ -18,7 +20,8 @@ Runners:
      run beside (``--only unit``, ``-k`` selecting none), they run in stage 1's
      pool at normal priority instead.
 Each rostest gets its own master on a free port (rostest's default) and its
-own process group, killed afterwards.
+own process group, killed afterwards: after CHEFBOT_ROSTEST_TIMEOUT (600 s) or,
+when the file declares a longer ``time-limit``, 120 s after that.
 
 Every child gets the environment variable CHEFBOT_TEST_RUN=<token>; at the end
 any process still carrying it is reported as a leak, killed, and counted as a
@@ -405,6 +408,26 @@ def select_rostests(pattern: str | None) -> tuple[list[tuple[str, Path]], list[t
     return timed, [t for t in tests if t not in timed]
 
 
+_TIME_LIMIT = re.compile(r"""<test\s[^>]*?time-limit\s*=\s*["']([\d.]+)["']""")
+
+
+def time_limit(test: Path) -> float:
+    """The longest ``time-limit`` (s) a rostest file declares for its test nodes (rostest's default: 60)."""
+    limits = [float(v) for v in _TIME_LIMIT.findall(test.read_text(errors="replace"))]
+    return max(limits, default=60.0)
+
+
+def wall_timeout(test: Path) -> float:
+    """How long the runner lets a rostest file run: its own time-limit and 120 s for the launch and the
+    shutdown, at least CHEFBOT_ROSTEST_TIMEOUT."""
+    return max(ROSTEST_TIMEOUT_S, time_limit(test) + 120.0)
+
+
+def is_long(test: Path) -> bool:
+    """A rostest that declares more time than the runner's default timeout (it runs last, alone)."""
+    return time_limit(test) > ROSTEST_TIMEOUT_S
+
+
 def run_rostest(env: dict, pkg: str, test: Path) -> Totals:
     """One rostest file; its result line, figures and (when it failed) its log's tail printed as one block."""
     rel = test.relative_to(ROOT)
@@ -416,7 +439,8 @@ def run_rostest(env: dict, pkg: str, test: Path) -> Totals:
     # An absolute path alone: rostest infers the package from it (pkg + path is rejected).
     # Its own results directory per test, since rostest picks the file names itself.
     cmd = ["rostest", "--results-base-dir", str(out_dir), str(test)]
-    rc, to = run_group(cmd, env, ROSTEST_TIMEOUT_S, logf)
+    timeout = wall_timeout(test)
+    rc, to = run_group(cmd, env, timeout, logf)
     # rosunit-*.xml: one per test node, with its individual cases; rostest-*.xml: one
     # case per test node (fails when a node never wrote results).
     t = Totals()
@@ -429,7 +453,7 @@ def run_rostest(env: dict, pkg: str, test: Path) -> Totals:
         t.add(Totals(failed=agg.failed, failures=agg.failures))
     if to:
         t.failed += 1
-        t.failures.append(f"{name}: timed out after {ROSTEST_TIMEOUT_S:.0f} s")
+        t.failures.append(f"{name}: timed out after {timeout:.0f} s")
     elif rc != 0 and not t.failed:
         t.failed += 1
         t.failures.append(f"{name}: rostest exit {rc}")
@@ -495,10 +519,15 @@ def main() -> int:
         total.add(run_side_stage(env, firmware, untimed, dirs, args.pattern))
         if timed:
             log(f"stage 2: {len(timed)} rostest(s) in sim time, one at a time")
-        for pkg, test in timed:     # one at a time: each paces a simulator against the wall clock
-            total.add(run_rostest(env, pkg, test))
+        long_ones = [t for t in timed if is_long(t[1])]
+        for pkg, test in [t for t in timed if t not in long_ones]:
+            total.add(run_rostest(env, pkg, test))  # one at a time: each paces a simulator against the wall clock
         for fut in unit_futures:
             total.add(fut.result())
+        if long_ones:
+            log(f"stage 2, long rostest(s) now that stage 3 is done: {len(long_ones)}, one at a time")
+        for pkg, test in long_ones:
+            total.add(run_rostest(env, pkg, test))
     except BaseException:
         abandon(background)
         raise

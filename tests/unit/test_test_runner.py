@@ -185,3 +185,22 @@ def test_sim_timed_knows_the_workspace_tests() -> None:
     assert run_tests.sim_timed(by_name["delivery_route_firmware"])
     assert run_tests.sim_timed(by_name["slam_workflow"])
     assert not run_tests.sim_timed(by_name["diff_drive"])
+
+
+def test_a_rostest_declaring_a_long_time_limit_gets_it_and_runs_last(tmp_path: Path) -> None:
+    """The runner's wall timeout follows the file's own time-limit (plus launch and shutdown time), never
+    below the default; a file declaring more than the default is a long one (run last, alone)."""
+    def test_file(name: str, body: str) -> Path:
+        f = tmp_path / f"{name}.test"
+        f.write_text(f"<launch>{body}</launch>")
+        return f
+
+    default = run_tests.ROSTEST_TIMEOUT_S
+    short = test_file("short", '<test test-name="a" pkg="p" type="t.py" time-limit="420"/>')
+    none = test_file("none", '<test test-name="a" pkg="p" type="t.py"/>')
+    long_ = test_file("long", '<test test-name="a" pkg="p" type="t.py" time-limit="60"/>\n'
+                      f'<test time-limit = "{default + 900:.0f}" test-name="b" pkg="p" type="u.py"/>')
+    assert run_tests.time_limit(short) == 420.0 and run_tests.time_limit(none) == 60.0
+    assert run_tests.wall_timeout(short) == max(default, 540.0)
+    assert run_tests.wall_timeout(long_) == default + 1020.0
+    assert not run_tests.is_long(short) and not run_tests.is_long(none) and run_tests.is_long(long_)
