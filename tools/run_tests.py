@@ -8,9 +8,9 @@ Runners:
      machine has cores (CHEFBOT_TEST_JOBS overrides);
   2. the rostests that run in sim time (the test or a launch file it includes
      mentions ``use_sim_time``: a simulator paced against the wall clock), one
-     at a time; a long one (a ``time-limit`` over the runner's timeout, e.g.
-     the hotel SLAM workflow) last, once stage 3 has finished, so that it has
-     the machine to itself;
+     at a time; the long ones (a ``time-limit`` over the runner's timeout: the
+     delivery routes, the hotel SLAM workflow, ...) last, once stage 3 has
+     finished, so that they have the machine to themselves;
   3. ``make -C firmware test`` with a bounded fuzz run, then pytest over every
      ``*/test/unit`` directory and ``tests/unit``: from the start, one at a
      time at the lowest CPU priority (``nice 19``) beside stages 1 and 2.
@@ -525,7 +525,8 @@ def main() -> int:
         for fut in unit_futures:
             total.add(fut.result())
         if long_ones:
-            log(f"stage 2, long rostest(s) now that stage 3 is done: {len(long_ones)}, one at a time")
+            log(f"stage 2, the {len(long_ones)} long rostest(s) (time-limit over {ROSTEST_TIMEOUT_S:.0f} s) now that "
+                f"stage 3 is done, one at a time")
         for pkg, test in long_ones:
             total.add(run_rostest(env, pkg, test))
     except BaseException:
