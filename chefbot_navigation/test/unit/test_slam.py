@@ -358,3 +358,112 @@ def test_config_rejects_bad_values():
         Slam(SlamConfig(refine_every=0))
     with pytest.raises(ValueError, match="turn_scale_limit"):
         Slam(SlamConfig(turn_scale_limit=float("nan")))
+
+
+def test_reintegration_by_rebuild_and_by_moving_keyframes_give_the_same_grid():
+    """_reintegrate moves the keyframes that moved (take out at the old pose, put in at the new) or, when
+    most moved, rebuilds the grid from zero: both must leave the log-odds of integrating every mapped
+    keyframe once at its optimised pose."""
+    import copy
+    slam, _, _, _ = _run_corridor(SlamConfig(loop_closure=False, refine_passes=0))
+    mapped = [i for i, k in enumerate(slam.keyframes) if k.integrated is not None]
+    assert len(mapped) > 100
+
+    def reference(s: Slam) -> np.ndarray:
+        ref = copy.deepcopy(s)
+        ref.grid.clear()
+        for i in mapped:
+            ref._integrate(i, +1.0)
+        return ref.grid.l
+
+    for share, way in ((0.2, "moving"), (0.8, "rebuild")):
+        s = copy.deepcopy(slam)
+        k0 = mapped[int(len(mapped) * (1 - share))]
+        s.graph.poses[k0:] = [Pose2D(p.x + 0.12, p.y - 0.07, p.yaw + 0.02) for p in s.graph.poses[k0:]]
+        before = s.stats.reintegrated
+        s._reintegrate()
+        moved = s.stats.reintegrated - before
+        assert (2 * moved > len(mapped)) == (way == "rebuild"), (way, moved, len(mapped))
+        assert all(s.keyframes[i].integrated == s.graph.poses[i] for i in mapped)
+        np.testing.assert_allclose(s.grid.l, reference(s), atol=1e-3, err_msg=way)
+        assert not np.allclose(s.grid.l, slam.grid.l, atol=0.5)        # the map did change
+
+
+def test_unique_cells_by_mask_is_numpys_unique_on_any_grid_size():
+    rng = np.random.default_rng(5)
+    for bounds in ((-2.0, -2.0, 2.0, 2.0), (-60.0, -60.0, 60.0, 60.0)):      # mask path, then np.unique's
+        g = LogOddsGrid(0.05, bounds)
+        for n in (0, 1, 500, 20000):
+            cells = rng.integers(0, g.l.size, n)
+            out = g._unique_cells(cells)
+            np.testing.assert_array_equal(out, np.unique(cells))
+            assert g._mark is None or not g._mark.any()         # the scratch is clean for the next scan
+        g.ensure(-3.0, -3.0, 3.0, 3.0)                          # the grid grows: the scratch follows
+        cells = rng.integers(0, g.l.size, 30000)
+        np.testing.assert_array_equal(g._unique_cells(cells), np.unique(cells))
+
+
+def _random_loop_graph(rng: np.random.Generator, n: int = 120) -> PoseGraph:
+    """A drifting chain of n poses round a circle with noisy edges, loop edges back to the start and one
+    wrong loop edge (1 m off: the Huber loss's business)."""
+    true = [Pose2D(5 * math.cos(a), 5 * math.sin(a), a + math.pi / 2) for a in np.linspace(0, 2 * math.pi, n)]
+    g = PoseGraph()
+    pose = true[0]
+    for i in range(n):
+        if i:
+            z = true[i - 1].inverse().compose(true[i])
+            pose = pose.compose(Pose2D(z.x * 1.03, z.y, z.yaw + 0.01))          # drifting odometry
+        g.add_node(pose)
+    for i in range(1, n):
+        z = true[i - 1].inverse().compose(true[i])
+        g.add_edge(i - 1, i, Pose2D(z.x + rng.normal(0, 0.01), z.y + rng.normal(0, 0.01), z.yaw + rng.normal(0, 0.005)),
+                   (0.02, 0.02, 0.01))
+    for i in (n - 1, n - 2, n - 3):
+        g.add_edge(0, i, true[0].inverse().compose(true[i]), (0.05, 0.05, 0.02), loop=True)
+    g.add_edge(n // 4, 3 * n // 4, true[n // 4].inverse().compose(true[3 * n // 4]).compose(Pose2D(1.0, 0, 0)),
+               (0.05, 0.05, 0.02), loop=True)
+    return g
+
+
+def _graph_residual(g: PoseGraph):
+    """(x0, residual(v)) of a graph, written out independently of pose_graph.py: the oracle's problem."""
+    x0 = np.array([[p.x, p.y, p.yaw] for p in g.poses])
+    ii, jj, z, w = g._arrays()
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        x = np.vstack((x0[0], v.reshape(-1, 3)))
+        d = x[jj, :2] - x[ii, :2]
+        c, s = np.cos(x[ii, 2]), np.sin(x[ii, 2])
+        r = np.column_stack((c * d[:, 0] + s * d[:, 1] - z[:, 0], -s * d[:, 0] + c * d[:, 1] - z[:, 1],
+                             np.angle(np.exp(1j * (x[jj, 2] - x[ii, 2] - z[:, 2])))))
+        return (r * w).ravel()
+    return x0, residual
+
+
+def test_pose_graph_reaches_scipy_least_squares_optimum():
+    """Our Levenberg-Marquardt (sparse direct solve, Huber by reweighting) against scipy's least_squares
+    with the same residuals and loss as the oracle: the same minimum, to the same cost."""
+    from scipy.optimize import least_squares
+
+    from chefbot_navigation.slam.pose_graph import HUBER, huber_cost
+    rng = np.random.default_rng(2)
+    for _ in range(3):
+        g = _random_loop_graph(rng)
+        x0, residual = _graph_residual(g)
+        ref = least_squares(residual, x0[1:].ravel(), loss="huber", f_scale=HUBER, xtol=1e-12, ftol=1e-12,
+                            gtol=1e-12, max_nfev=2000)
+        cost = g.optimize()
+        ours = np.array([[p.x, p.y, p.yaw] for p in g.poses])[1:].ravel()
+        assert cost == pytest.approx(huber_cost(residual(ours)))
+        assert cost <= ref.cost * (1 + 1e-6) + 1e-9, (cost, ref.cost)
+        assert np.abs(ours.reshape(-1, 3)[:, :2] - ref.x.reshape(-1, 3)[:, :2]).max() < 1e-3
+        assert g.poses[0] == Pose2D(*x0[0])                       # the first node holds the frame
+
+
+def test_pose_graph_with_a_node_no_edge_reaches_keeps_it():
+    g = PoseGraph()
+    for p in (Pose2D(0, 0, 0), Pose2D(1.2, 0.1, 0.05), Pose2D(7, 7, 1)):
+        g.add_node(p)
+    g.add_edge(0, 1, Pose2D(1, 0, 0), (0.05, 0.05, 0.02))
+    g.optimize()
+    assert g.poses[1].distance(Pose2D(1, 0, 0)) < 1e-6 and g.poses[2] == Pose2D(7, 7, 1)

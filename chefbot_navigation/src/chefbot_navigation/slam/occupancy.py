@@ -55,6 +55,7 @@ class LogOddsGrid:
         w = max(1, math.ceil(round((xmax - self.ox) / self.res, 6)))
         h = max(1, math.ceil(round((ymax - self.oy) / self.res, 6)))
         self.l = np.zeros((h, w), dtype=np.float32)
+        self._mark: np.ndarray | None = None     # scratch for _unique_cells, all False between calls
 
     # -- geometry ---------------------------------------------------------------------------
     @property
@@ -106,7 +107,7 @@ class LogOddsGrid:
         ys = origin[1] + frac * d[:, 1:2]
         col = np.floor((xs[inside] - self.ox) / self.res).astype(np.int64)
         row = np.floor((ys[inside] - self.oy) / self.res).astype(np.int64)
-        free = np.unique(row * w + col)
+        free = self._unique_cells(row * w + col)
         ec = np.floor((ends[:, 0] - self.ox) / self.res).astype(np.int64)
         er = np.floor((ends[:, 1] - self.oy) / self.res).astype(np.int64)
         occ = np.unique(er[hit] * w + ec[hit])
@@ -114,6 +115,20 @@ class LogOddsGrid:
         free = np.union1d(free, free_end)
         free = np.setdiff1d(free, occ, assume_unique=True)
         return free, occ
+
+    def _unique_cells(self, cells: np.ndarray) -> np.ndarray:
+        """``np.unique(cells)`` (flat indices of this grid).  A beam is sampled three times per cell, so a
+        scan gives ~10^4-10^5 samples: marking them in a scratch mask of the grid and reading it back
+        is ~6x faster than sorting them, unless the grid is much larger than the samples."""
+        size = self.l.size
+        if size > 64 * len(cells):
+            return np.unique(cells)
+        if self._mark is None or self._mark.size != size:
+            self._mark = np.zeros(size, dtype=bool)
+        self._mark[cells] = True
+        out = np.flatnonzero(self._mark)
+        self._mark[out] = False
+        return out
 
     def integrate(self, origin: np.ndarray, ends: np.ndarray, hit: np.ndarray) -> None:
         """Update the log-odds with one scan given in the grid's frame (see :meth:`trace`)."""
