@@ -424,7 +424,7 @@ def wall_timeout(test: Path) -> float:
 
 
 def is_long(test: Path) -> bool:
-    """A rostest that declares more time than the runner's default timeout (it runs last, alone)."""
+    """A rostest that declares more time than the runner's default timeout (run after stage 3, one at a time)."""
     return time_limit(test) > ROSTEST_TIMEOUT_S
 
 
