@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
@@ -154,7 +156,17 @@ def test_free_port_is_bindable() -> None:
         s.bind(("127.0.0.1", port))
 
 
-def test_sim_timed_follows_includes(tmp_path: Path) -> None:
+@pytest.fixture
+def write_test(tmp_path: Path):
+    """``write_test(name, body)``: a rostest file ``<launch>body</launch>`` in tmp_path."""
+    def write(name: str, body: str) -> Path:
+        f = tmp_path / f"{name}.test"
+        f.write_text(f"<launch>{body}</launch>")
+        return f
+    return write
+
+
+def test_sim_timed_follows_includes(tmp_path: Path, write_test) -> None:
     """A test runs in sim time when it or anything it includes mentions use_sim_time; an include
     that cannot be resolved counts as timed (the serial stage is the safe side)."""
     pkg = tmp_path / "pkg_a"
@@ -163,20 +175,15 @@ def test_sim_timed_follows_includes(tmp_path: Path) -> None:
     (pkg / "launch" / "plain.launch").write_text('<launch><node pkg="x" type="y" name="z"/></launch>')
     packages = {"pkg_a": pkg}
 
-    def test_file(name: str, body: str) -> Path:
-        f = tmp_path / f"{name}.test"
-        f.write_text(f"<launch>{body}</launch>")
-        return f
-
-    assert not run_tests.sim_timed(test_file("plain", '<include file="$(find pkg_a)/launch/plain.launch"/>'),
+    assert not run_tests.sim_timed(write_test("plain", '<include file="$(find pkg_a)/launch/plain.launch"/>'),
                                    packages)
-    assert run_tests.sim_timed(test_file("nested", '<include file="$(find pkg_a)/launch/plain.launch"/>'
-                                         '<include file="$(find pkg_a)/launch/sim.launch" />'), packages)
-    assert run_tests.sim_timed(test_file("own", '<param name="use_sim_time" value="true"/>'), packages)
-    assert run_tests.sim_timed(test_file("arg", '<include file="$(find pkg_a)/launch/$(arg which)"/>'), packages)
-    assert run_tests.sim_timed(test_file("other", '<include file="$(find rviz)/launch/x.launch"/>'), packages)
+    assert run_tests.sim_timed(write_test("nested", '<include file="$(find pkg_a)/launch/plain.launch"/>'
+                                          '<include file="$(find pkg_a)/launch/sim.launch" />'), packages)
+    assert run_tests.sim_timed(write_test("own", '<param name="use_sim_time" value="true"/>'), packages)
+    assert run_tests.sim_timed(write_test("arg", '<include file="$(find pkg_a)/launch/$(arg which)"/>'), packages)
+    assert run_tests.sim_timed(write_test("other", '<include file="$(find rviz)/launch/x.launch"/>'), packages)
     (tmp_path / "local.launch").write_text("<launch/>")
-    assert not run_tests.sim_timed(test_file("dirname", '<include file="$(dirname)/local.launch"/>'), packages)
+    assert not run_tests.sim_timed(write_test("dirname", '<include file="$(dirname)/local.launch"/>'), packages)
 
 
 def test_sim_timed_knows_the_workspace_tests() -> None:
@@ -187,19 +194,14 @@ def test_sim_timed_knows_the_workspace_tests() -> None:
     assert not run_tests.sim_timed(by_name["diff_drive"])
 
 
-def test_a_rostest_declaring_a_long_time_limit_gets_it_and_runs_last(tmp_path: Path) -> None:
+def test_a_rostest_declaring_a_long_time_limit_gets_it_and_runs_last(write_test) -> None:
     """The runner's wall timeout follows the file's own time-limit (plus launch and shutdown time), never
-    below the default; a file declaring more than the default is a long one (run last, alone)."""
-    def test_file(name: str, body: str) -> Path:
-        f = tmp_path / f"{name}.test"
-        f.write_text(f"<launch>{body}</launch>")
-        return f
-
+    below the default; a file declaring more than the default is a long one (run after the unit tests)."""
     default = run_tests.ROSTEST_TIMEOUT_S
-    short = test_file("short", '<test test-name="a" pkg="p" type="t.py" time-limit="420"/>')
-    none = test_file("none", '<test test-name="a" pkg="p" type="t.py"/>')
-    long_ = test_file("long", '<test test-name="a" pkg="p" type="t.py" time-limit="60"/>\n'
-                      f'<test time-limit = "{default + 900:.0f}" test-name="b" pkg="p" type="u.py"/>')
+    short = write_test("short", '<test test-name="a" pkg="p" type="t.py" time-limit="420"/>')
+    none = write_test("none", '<test test-name="a" pkg="p" type="t.py"/>')
+    long_ = write_test("long", '<test test-name="a" pkg="p" type="t.py" time-limit="60"/>\n'
+                       f'<test time-limit = "{default + 900:.0f}" test-name="b" pkg="p" type="u.py"/>')
     assert run_tests.time_limit(short) == 420.0 and run_tests.time_limit(none) == 60.0
     assert run_tests.wall_timeout(short) == max(default, 540.0)
     assert run_tests.wall_timeout(long_) == default + 1020.0
