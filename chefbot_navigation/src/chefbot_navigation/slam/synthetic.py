@@ -78,7 +78,6 @@ def square_route(side: float = 8.0, width: float = 1.6, laps: float = 2.0, step:
     return poses
 
 
-
 def drive_square_corridor(slam, seed: int = 3, yaw_bias: float = 0.02) -> tuple[np.ndarray, list[Pose2D], list[Pose2D]]:
     """Feed ``slam`` (a ``Slam``: ``add_scan(t, scan, odom)``) two laps of :func:`square_corridor` seen by
     a 180 deg, 6 m lidar with :func:`noisy_odometry` (``seed``, ``yaw_bias``), one scan per 0.1 s;
@@ -91,6 +90,7 @@ def drive_square_corridor(slam, seed: int = 3, yaw_bias: float = 0.02) -> tuple[
         r = cast(segs, (tp.x, tp.y), angles + tp.yaw, rmax)
         slam.add_scan(0.1 * k, scan_from_ranges(r, -fov / 2, fov / n, 0.05, rmax, Pose2D(), 5.5), op)
     return segs, truth, odom
+
 
 class OdometryNoise:
     """Stateful filter ``f(t, pose) -> pose`` adding wheel-odometry error to a stream of odometry poses.
