@@ -19,6 +19,19 @@ def room_map(width_m: float = 8.0, height_m: float = 6.0, res: float = 0.05) -> 
     return OccupancyMap(GridInfo(res, w, h, 0.0, 0.0, 0.0), data)
 
 
+
+def symmetric_room(res: float = 0.05) -> OccupancyMap:
+    """An 8 m x 6 m walled room whose boxes come in pairs turned 180 deg about its centre (4, 3): the
+    pose (x, y, a) and its look-alike (8 - x, 6 - y, a + pi) see the same scans."""
+    w, h = int(round(8.0 / res)), int(round(6.0 / res))
+    data = np.zeros((h, w), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    for (x0, y0, x1, y1) in ((1.0, 1.0, 1.6, 1.4), (3.0, 4.4, 3.4, 6.0)):
+        data[int(y0 / res):int(y1 / res), int(x0 / res):int(x1 / res)] = 100
+    data[:] = np.maximum(data, data[::-1, ::-1])
+    return OccupancyMap(GridInfo(res, w, h, 0.0, 0.0, 0.0), data)
+
+
 def cast(occ: OccupancyMap, pose: Pose2D, angles: np.ndarray, range_max: float) -> np.ndarray:
     """Ranges (m) from ``pose`` along ``angles`` (rad, in the pose's frame) to the first
     occupied cell, marching at a quarter cell; +inf when nothing within ``range_max``."""

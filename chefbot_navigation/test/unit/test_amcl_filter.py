@@ -6,14 +6,14 @@ import math
 
 import numpy as np
 import pytest
-from amcl_scenes import cast, drifting_odometry, lawnmower, room_map
+from amcl_scenes import cast, drifting_odometry, lawnmower, room_map, symmetric_room
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_navigation.amcl.filter import FilterConfig, ParticleFilter
 from chefbot_navigation.amcl.localizer import OK, WARN, Amcl, AmclConfig
 from chefbot_navigation.amcl.motion import DiffMotionNoise
-from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError
+from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
 
 CAMERA = np.linspace(-0.506, 0.506, 160)        # the depth camera's ~58 degree band
 LIDAR = np.linspace(-math.pi, math.pi, 360, endpoint=False)
@@ -309,3 +309,39 @@ def test_recovery_waits_for_a_poor_fit() -> None:
     assert gated.w_diff == pytest.approx(0.22)
     with pytest.raises(ValueError, match="recovery_max_fit"):
         FilterConfig(max_fit=0.0)
+
+
+def test_estimate_does_not_follow_a_heavier_look_alike_that_fits_the_scans_no_better() -> None:
+    """In a room that looks the same turned 180 deg, recovery injection seeds the look-alike place,
+    and resampling can make it the heavier cluster although it explains the scans no better (the
+    hotel SLAM workflow's failure: the estimate jumped 6.1 m and turned 180 deg).  With
+    estimate_min_gain the estimate stays unless the other cluster's best pose also fits the recent
+    scans that much better than the tracked cluster's: a kidnap (the tracked cluster somewhere
+    else) still moves it; 0 is the weight rule alone."""
+    occ = symmetric_room()
+    field = LikelihoodField(occ, LaserModel(sigma_hit=0.1))
+    truth = Pose2D(2.5, 2.0, 0.3)
+    mirror = Pose2D(8.0 - truth.x, 6.0 - truth.y, wrap_angle(truth.yaw + math.pi))
+    pts = select_beams(cast(occ, truth.compose(LASER), LIDAR, 8.0), LIDAR, 0.1, 8.0, 180, LASER)
+    fits = field.weights(np.array([[truth.x, truth.y, truth.yaw], [mirror.x, mirror.y, mirror.yaw]]), pts, 8.0)[1]
+    assert abs(fits[0] - fits[1]) < 0.02 and fits.min() > 0.9        # a true look-alike
+
+    def estimate(min_gain: float, tracked: Pose2D, heavier: Pose2D) -> Pose2D:
+        """The estimate when ``heavier``'s cluster holds 4x the weight of ``tracked``'s."""
+        pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=400, min_gain=min_gain),
+                            np.random.default_rng(3))
+        pf.init_gaussian(truth, np.diag([1e-4, 1e-4, 1e-4]))
+        pf.weigh(field, pts, 8.0)                                     # the recent scan
+        rng = np.random.default_rng(4)
+        pf.particles = np.concatenate([np.array([[p.x, p.y, p.yaw]]) + 0.02 * rng.standard_normal((200, 3))
+                                       for p in (tracked, heavier)])
+        pf.weights = np.concatenate([np.full(200, 0.2 / 200), np.full(200, 0.8 / 200)])
+        pf.tracked = tracked
+        return pf.estimate()[0]
+
+    assert estimate(0.1, truth, mirror).distance(truth) < 0.05       # heavier, but no better: stays
+    assert estimate(0.0, truth, mirror).distance(mirror) < 0.05      # the weight rule alone: jumps
+    lost = Pose2D(6.0, 1.5, 2.0)                                      # kidnapped: the tracked place fits badly
+    assert estimate(0.1, lost, truth).distance(truth) < 0.05
+    with pytest.raises(ValueError, match="estimate_min_gain"):
+        FilterConfig(min_gain=1.0)

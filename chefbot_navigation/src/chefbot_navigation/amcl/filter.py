@@ -58,6 +58,9 @@ class FilterConfig:
                                    # than the one the estimate tracks (1: amcl's heaviest cluster, always)
     max_fit: float = 1.0           # recovery_max_fit: no injection while the set's mean beam fit is at least
                                    # this (1: amcl, the alphas alone decide)
+    min_gain: float = 0.0          # estimate_min_gain: another cluster becomes the estimate only when its best
+                                   # pose also fits the recent scans this much better (mean beam fit) than the
+                                   # tracked cluster's best (0: weight alone)
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_particles <= self.max_particles:
@@ -78,6 +81,8 @@ class FilterConfig:
             raise ValueError(f"estimate_switch_ratio must be a number >= 1, got {self.switch_ratio}")
         if not 0.0 < self.max_fit <= 1.0:
             raise ValueError(f"recovery_max_fit must be in (0, 1], got {self.max_fit}")
+        if not 0.0 <= self.min_gain < 1.0:
+            raise ValueError(f"estimate_min_gain must be in [0, 1), got {self.min_gain}")
         if self.alpha_slow > 0 and not self.alpha_fast > self.alpha_slow:
             raise ValueError(f"recovery_alpha_fast ({self.alpha_fast}) must exceed recovery_alpha_slow "
                              f"({self.alpha_slow})")
@@ -98,6 +103,7 @@ class ParticleFilter:
         self.tracked: Pose2D | None = None   # the estimate's pose, carried along by odometry (map frame)
         self.switches = 0                    # times the estimate moved to another cluster
         self.last_fit = math.nan             # weighted mean beam fit of the last weighing (0..1)
+        self._field: LikelihoodField | None = None   # the field of the last weighing
 
     def _set(self, particles: np.ndarray, forget_scans: bool = True) -> None:
         self.particles = particles
@@ -149,6 +155,7 @@ class ParticleFilter:
         scoring of recent scans uses the end points alone.
         """
         w, fit = field.weights(self.particles, endpoints, range_max, before)
+        self._field = field
         self._recent.append(np.asarray(endpoints, dtype=np.float32))
         self._range_max = range_max
         # recovery statistic: mean pz³ per beam under the prior weights (amcl sums over beams, which
@@ -225,6 +232,19 @@ class ParticleFilter:
         w, _ = field.weights(cand, pts, self._range_max)
         return cand[low_variance_indices(w, n, self.rng)]
 
+    def _fits_better(self, a: Cluster, b: Cluster) -> bool:
+        """Cluster ``a``'s best pose fits the recent scans ``min_gain`` better than ``b``'s (True if off)."""
+        pts = self.recent_endpoints()
+        if self.cfg.min_gain <= 0 or self._field is None or len(pts) == 0:
+            return True
+        best = []
+        for c in (a, b):
+            p = self.particles
+            yaw = np.abs(np.mod(p[:, 2] - c.mean[2] + math.pi, 2.0 * math.pi) - math.pi)
+            mine = (np.hypot(p[:, 0] - c.mean[0], p[:, 1] - c.mean[1]) <= TRACK_XY) & (yaw <= TRACK_YAW)
+            best.append(float(self._field.weights(p[mine], pts, self._range_max)[1].max()) if mine.any() else 0.0)
+        return best[0] > best[1] + self.cfg.min_gain
+
     def estimate(self) -> tuple[Pose2D, np.ndarray, list[Cluster]]:
         """(the estimate: a cluster's mean pose, its covariance 3x3, clusters heaviest first).
 
@@ -249,7 +269,8 @@ class ParticleFilter:
             t = self.tracked
             near = [c for c in cl if math.hypot(c.mean[0] - t.x, c.mean[1] - t.y) <= TRACK_XY
                     and abs(math.remainder(c.mean[2] - t.yaw, 2.0 * math.pi)) <= TRACK_YAW]
-            if near and near[0] is not best and best.weight < self.cfg.switch_ratio * near[0].weight:
+            if near and near[0] is not best and (best.weight < self.cfg.switch_ratio * near[0].weight
+                                                 or not self._fits_better(best, near[0])):
                 best = near[0]
             elif not near or near[0] is not best:
                 self.switches += 1

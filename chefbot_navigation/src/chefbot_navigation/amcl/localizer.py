@@ -88,6 +88,7 @@ class AmclConfig:
                                         # estimate (1: always the heaviest, as amcl)
     recovery_max_fit: float = 0.7       # ours: no recovery injection while the mean beam fit is at least this
                                         # (1: amcl, the alphas alone)
+    estimate_min_gain: float = 0.0      # ours: ... and fit the recent scans this much better (0: weight alone)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
@@ -123,7 +124,8 @@ class AmclConfig:
         return FilterConfig(self.min_particles, self.max_particles, self.kld_err, self.kld_z,
                             self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool,
                             self.recovery_scans, self.recovery_beams, self.recovery_refine,
-                            self.estimate_switch_ratio, self.recovery_max_fit)
+                            self.estimate_switch_ratio, self.recovery_max_fit,
+                            self.estimate_min_gain)
 
     def motion_noise(self) -> DiffMotionNoise:
         """The odometry motion model's noise (odom_alpha1..4)."""
