@@ -327,7 +327,7 @@ def test_estimate_does_not_follow_a_heavier_look_alike_that_fits_the_scans_no_be
     assert abs(fits[0] - fits[1]) < 0.02 and fits.min() > 0.9        # a true look-alike
 
     def estimate(min_gain: float, tracked: Pose2D, heavier: Pose2D) -> Pose2D:
-        """The estimate when ``heavier``'s cluster holds 4x the weight of ``tracked``'s."""
+        """The estimate when ``heavier``'s cluster holds 4x the weight of ``tracked``'s; checks the counts."""
         pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=400, min_gain=min_gain),
                             np.random.default_rng(3))
         pf.init_gaussian(truth, np.diag([1e-4, 1e-4, 1e-4]))
@@ -337,7 +337,10 @@ def test_estimate_does_not_follow_a_heavier_look_alike_that_fits_the_scans_no_be
                                        for p in (tracked, heavier)])
         pf.weights = np.concatenate([np.full(200, 0.2 / 200), np.full(200, 0.8 / 200)])
         pf.tracked = tracked
-        return pf.estimate()[0]
+        est = pf.estimate()[0]
+        moved = est.distance(tracked) > 0.5
+        assert (pf.switches, pf.refused) == ((1, 0) if moved else (0, 1))
+        return est
 
     assert estimate(0.1, truth, mirror).distance(truth) < 0.05       # heavier, but no better: stays
     assert estimate(0.0, truth, mirror).distance(mirror) < 0.05      # the weight rule alone: jumps

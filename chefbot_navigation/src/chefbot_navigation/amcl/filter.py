@@ -102,6 +102,7 @@ class ParticleFilter:
         self._range_max = math.inf
         self.tracked: Pose2D | None = None   # the estimate's pose, carried along by odometry (map frame)
         self.switches = 0                    # times the estimate moved to another cluster
+        self.refused = 0                     # updates a heavier cluster was not taken: it fitted no better
         self.last_fit = math.nan             # weighted mean beam fit of the last weighing (0..1)
         self._field: LikelihoodField | None = None   # the field of the last weighing
 
@@ -260,8 +261,10 @@ class ParticleFilter:
         machine) such a cluster can outweigh the tracked one for an update or two: the estimate
         would jump metres and back.  So the cluster that continues the previous estimate (within
         ``TRACK_XY`` / ``TRACK_YAW`` of it, moved by odometry) stays the estimate unless another is
-        ``switch_ratio`` times heavier; after a real kidnap the tracked cluster fits no scan and
-        dies out within a few updates, and the estimate moves.
+        ``switch_ratio`` times heavier and (``min_gain`` > 0) its best pose fits the recent scans
+        ``min_gain`` better than the tracked cluster's best: a look-alike grows heavier by chance,
+        not by explaining the scans.  After a real kidnap the tracked cluster fits no scan and dies
+        out within a few updates, and the estimate moves.
         """
         cl = clusters(self.particles, self.weights)
         best = cl[0]
@@ -269,8 +272,10 @@ class ParticleFilter:
             t = self.tracked
             near = [c for c in cl if math.hypot(c.mean[0] - t.x, c.mean[1] - t.y) <= TRACK_XY
                     and abs(math.remainder(c.mean[2] - t.yaw, 2.0 * math.pi)) <= TRACK_YAW]
-            if near and near[0] is not best and (best.weight < self.cfg.switch_ratio * near[0].weight
-                                                 or not self._fits_better(best, near[0])):
+            if near and near[0] is not best and best.weight < self.cfg.switch_ratio * near[0].weight:
+                best = near[0]
+            elif near and near[0] is not best and not self._fits_better(best, near[0]):
+                self.refused += 1
                 best = near[0]
             elif not near or near[0] is not best:
                 self.switches += 1

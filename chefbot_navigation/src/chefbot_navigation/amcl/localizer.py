@@ -308,7 +308,8 @@ class Amcl:
         values = {"particles": float(len(self.pf.particles)), "updates": float(self.updates),
                   "mean_beam_fit": self.fit, "w_slow": self.pf.w_slow, "w_fast": self.pf.w_fast,
                   "injected_last_resample": float(self.pf.injected),
-                  "estimate_switches": float(self.pf.switches)}
+                  "estimate_switches": float(self.pf.switches),
+                  "heavier_look_alikes_refused": float(self.pf.refused)}
         if self.estimate is not None:
             e = self.estimate
             values.update(x=e.pose.x, y=e.pose.y, yaw=e.pose.yaw, std_xy=e.spread,
