@@ -1,7 +1,7 @@
 """The book's ch. 4 hand-over, map -> save -> localize, on a running ``gmapping_demo.launch explore:=true``.
 
 Shared by ``make demo SLAM=1`` (tools/slam_demo.py) and the slam_workflow rostests
-(tests/test/slam_workflow.test and chefbot_navigation/test/manual/slam_workflow_hotel.test):
+(tests/test/slam_workflow.test and tests/test/slam_workflow_hotel.test):
 
 1. :class:`ExploreWatch` waits for ``explore/done`` (latched Bool) and hands each of
    explore's progress lines (from ``/rosout``) to a callback;

@@ -3,8 +3,8 @@
 map_server -> (SLAM stopped) amcl on the saved map, started at SLAM's last pose -> table deliveries judged
 by ground truth.  The stages are tools/slam_workflow.py's, the ones `make demo SLAM=1` runs.
 
-Used by tests/test/slam_workflow.test (small room, in `make test`) and
-test/manual/slam_workflow_hotel.test (hotel, manual).
+Used by tests/test/slam_workflow.test (small room) and tests/test/slam_workflow_hotel.test (hotel),
+both in `make test`.
 Private params: ``tables`` (tables YAML, world frame; the robot starts at ``home``), ``names`` (tables to
 deliver to), ``truth_map`` (the world raster: the oracle), ``max_explore_s`` (sim s), ``min_coverage``,
 ``min_matched``, ``max_false_occupied`` (0..1), ``max_live_ate`` (m, default 0.10: SLAM's live pose while
