@@ -86,9 +86,9 @@ class AmclConfig:
     recovery_refine: int = 4            # ours: jittered copies per chosen candidate, scored again (0: none)
     estimate_switch_ratio: float = 3.0  # ours: another cluster must be this many times heavier to become the
                                         # estimate (1: always the heaviest, as amcl)
+    estimate_min_gain: float = 0.0      # ours: ... and fit the recent scans this much better (0: weight alone)
     recovery_max_fit: float = 0.7       # ours: no recovery injection while the mean beam fit is at least this
                                         # (1: amcl, the alphas alone)
-    estimate_min_gain: float = 0.0      # ours: ... and fit the recent scans this much better (0: weight alone)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
