@@ -9,6 +9,7 @@ import importlib
 import re
 import subprocess
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 from catkin_pkg.package import parse_package
@@ -110,6 +111,24 @@ def test_no_merge_conflict_markers() -> None:
     if out.returncode not in (0, 1):
         pytest.skip(f"not a git checkout: {out.stderr.strip()}")
     assert out.stdout == "", f"conflict markers:\n{out.stdout}"
+
+
+def test_launch_and_test_files_are_well_formed_xml() -> None:
+    """roslaunch reads a launch or .test file only when it is run, so a file that is no well-formed XML
+    (``--`` inside a comment) failed only at the end of a 23-minute CI run (2026-11-24)."""
+    out = subprocess.run(["git", "ls-files", "*.launch", "*.launch.xml", "*.test"], cwd=ROOT, capture_output=True,
+                         text=True, check=False)
+    if out.returncode != 0:
+        pytest.skip(f"not a git checkout: {out.stderr.strip()}")
+    files = out.stdout.split()
+    assert len(files) > 20, files
+    bad = []
+    for name in files:
+        try:
+            ElementTree.parse(ROOT / name)
+        except ElementTree.ParseError as exc:
+            bad.append(f"{name}: {exc}")
+    assert not bad, "\n".join(bad)
 
 
 def _rospy_nodes() -> list[Path]:
