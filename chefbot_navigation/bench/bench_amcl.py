@@ -24,6 +24,7 @@ import yaml
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.map_io import load_map
+from chefbot_common.tables import load_map_in_world
 from chefbot_navigation.amcl.localizer import Amcl, AmclConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -130,8 +131,7 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
     tables = {k: Pose2D(**v) for k, v in poses.items()}
     home = tables["home"]
     rig = SimRig(home, seed)
-    miw = Pose2D(**yaml.safe_load((MAPS / f"{site}_tables.yaml").read_text()).get("map_in_world",
-                                                                                  {"x": 0.0, "y": 0.0, "yaw": 0.0}))
+    miw = load_map_in_world(MAPS / f"{site}_tables.yaml")
     start = miw.inverse().compose(home)
     # the sim spawns the robot exactly at home: initial covariance as navigation_demo.launch gives it
     amcl = Amcl(amcl_config(initial_pose_x=start.x, initial_pose_y=start.y, initial_pose_a=start.yaw, seed=seed,

@@ -19,7 +19,6 @@ def room_map(width_m: float = 8.0, height_m: float = 6.0, res: float = 0.05) -> 
     return OccupancyMap(GridInfo(res, w, h, 0.0, 0.0, 0.0), data)
 
 
-
 def symmetric_room(res: float = 0.05) -> OccupancyMap:
     """An 8 m x 6 m walled room whose boxes come in pairs turned 180 deg about its centre (4, 3): the
     pose (x, y, a) and its look-alike (8 - x, 6 - y, a + pi) see the same scans."""
