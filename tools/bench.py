@@ -8,9 +8,17 @@ A benchmark is a module ``<package>/bench/bench_<name>.py`` with a function
 
 (``reference``/``goal``/``met`` may be None).  The table shows ours next to the
 reference and their ratio; all rows go to ``bench-results/bench-<UTC time>.json``
-and ``bench-results/latest.json``.
+and ``bench-results/latest.json``, with the run's facts (date, commit, machine,
+total time) under ``meta``.
 
-Usage:  python tools/bench.py [--quick] [-k SUBSTRING]
+A full run (no ``--quick``, no ``-k``) also writes ``docs/benchmarks.md``
+(tools/bench_report.py).  A quick or ``-k`` run leaves that page alone, so a
+partial run never replaces the full report; ``--report`` writes it anyway
+(the page then says it is a quick / partial run).
+``python tools/bench_report.py bench-results/latest.json`` rebuilds the page
+from a stored JSON without running anything.
+
+Usage:  python tools/bench.py [--quick] [-k SUBSTRING] [--report]
 """
 from __future__ import annotations
 
@@ -24,7 +32,8 @@ import time
 import traceback
 from pathlib import Path
 
-from procs import stop_on_sigterm  # tools/ is this script's directory
+from bench_report import REPORT, collect_meta, write_report  # tools/ is this script's directory
+from procs import stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench-results"
@@ -73,6 +82,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
     ap.add_argument("-k", dest="pattern", help="only benchmark files whose path contains this")
+    ap.add_argument("--report", action="store_true",
+                    help=f"write {REPORT.relative_to(ROOT)} even for a --quick or -k run")
     args = ap.parse_args()
 
     files = [p for p in discover() if not args.pattern or args.pattern in str(p)]
@@ -81,6 +92,9 @@ def main() -> int:
         return 1
     rows: list[dict] = []
     errors = 0
+    failed: list[str] = []
+    sources: dict[str, str] = {}
+    meta = collect_meta()  # the commit and tree state the run starts from
     t0 = time.monotonic()
     for path in files:
         rel = path.relative_to(ROOT)
@@ -90,6 +104,7 @@ def main() -> int:
         except Exception:  # noqa: BLE001 - one broken benchmark must not hide the others' figures
             traceback.print_exc()
             errors += 1
+            failed.append(str(rel))
             continue
         for r in got:
             missing = [k for k in ("bench", "case", "metric", "ours") if k not in r]
@@ -98,16 +113,24 @@ def main() -> int:
                 errors += 1
                 continue
             rows.append({k: r.get(k) for k in KEYS})
+            sources.setdefault(str(r["bench"]), str(rel))
     print()
     print_table(rows)
     OUT.mkdir(exist_ok=True)
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    seconds = round(time.monotonic() - t0, 1)
+    meta.update(seconds=seconds, quick=args.quick, pattern=args.pattern, failed=failed, sources=sources)
     doc = {"time_utc": stamp, "host": platform.node(), "python": platform.python_version(),
-           "quick": args.quick, "seconds": round(time.monotonic() - t0, 1), "rows": rows}
+           "quick": args.quick, "seconds": seconds, "meta": meta, "rows": rows}
     for name in (f"bench-{stamp}.json", "latest.json"):
         (OUT / name).write_text(json.dumps(doc, indent=2) + "\n")
     print(f"\n[bench] {len(rows)} figures from {len(files)} benchmarks in {doc['seconds']} s; "
           f"JSON: {(OUT / 'latest.json').relative_to(ROOT)}; {errors} errors")
+    if args.report or not (args.quick or args.pattern):
+        page = write_report(doc, source_json=str((OUT / f"bench-{stamp}.json").relative_to(ROOT)))
+        print(f"[bench] report: {page.relative_to(ROOT)}")
+    else:
+        print(f"[bench] {REPORT.relative_to(ROOT)} left as it is (quick or -k run; --report writes it)")
     return 1 if errors else 0
 
 
