@@ -10,7 +10,7 @@ help:
 	@echo "              another site: make demo WORLD=chefbot_sim/worlds/cafe.yaml MAP=chefbot_navigation/maps/cafe_map.yaml TABLES_FILE=chefbot_navigation/maps/cafe_tables.yaml"
 	@echo "make demo SLAM=1 - book ch. 4 in one go: explore + map with our SLAM, save the map, localize on it (amcl), deliver"
 	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
-	@echo "make bench  - benchmarks (ratios side by side, JSON in bench-results/)"
+	@echo "make bench  - benchmarks: figures side by side, JSON in bench-results/, report docs/benchmarks.md"
 	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
 	@echo "make setup  - only install and build"
 	@echo "make lint   - ruff over the Python code"
