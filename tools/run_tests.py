@@ -439,8 +439,13 @@ def run_rostest(env: dict, pkg: str, test: Path) -> Totals:
     # An absolute path alone: rostest infers the package from it (pkg + path is rejected).
     # Its own results directory per test, since rostest picks the file names itself.
     cmd = ["rostest", "--results-base-dir", str(out_dir), str(test)]
+    # Its own empty temporary directory, as TMPDIR: a test writes there (tempfile, $(optenv TMPDIR /tmp) in
+    # a launch file), never into HOME or the source tree.
+    tmp = RESULTS / "tmp" / f"{pkg}-{test.stem}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
     timeout = wall_timeout(test)
-    rc, to = run_group(cmd, env, timeout, logf)
+    rc, to = run_group(cmd, dict(env, TMPDIR=str(tmp)), timeout, logf)
     # rosunit-*.xml: one per test node, with its individual cases; rostest-*.xml: one
     # case per test node (fails when a node never wrote results).
     t = Totals()

@@ -31,7 +31,8 @@ class SourcesTest(unittest.TestCase):
         wait_for(lambda: self.got["image"], WALL, "image from image_read", rospy.is_shutdown)
         m = self.got["image"][-1]
         self.assertEqual((m.width, m.height, m.encoding), (320, 240, "bgr8"))
-        self.assertTrue(os.path.isfile(os.path.expanduser("~/.ros/chefbot_vision_image_read_copy.png")))
+        save_as = rospy.get_param("/image_read/save_as")   # in a directory that did not exist: created
+        self.assertTrue(os.path.isfile(save_as), save_as)
 
     def test_cam_streams_a_video_file_in_a_loop(self) -> None:
         wait_for(lambda: len(self.got["video"]) >= 12, WALL, "12 frames (the 5-frame clip loops)", rospy.is_shutdown)
@@ -47,8 +48,11 @@ class SourcesTest(unittest.TestCase):
                                    "no such video file: /nonexistent/chefbot_clip.avi"),
                                   ("cam", "_device:=57", "camera 57 does not exist"),
                                   ("image_read", "_image:=/nonexistent/chefbot.png",
-                                   "no such file: /nonexistent/chefbot.png")):
-            out = subprocess.run(["rosrun", PKG, node, f"__name:={node}_missing", param], capture_output=True,
+                                   "no such file: /nonexistent/chefbot.png"),
+                                  ("image_read", f"_save_as:={os.devnull}/chefbot/copy.png",
+                                   f"cannot create the directory {os.devnull}/chefbot for ~save_as")):
+            extra = [f"_image:={rospy.get_param('/image_read/image')}"] if "save_as" in param else []
+            out = subprocess.run(["rosrun", PKG, node, f"__name:={node}_missing", param, *extra], capture_output=True,
                                  text=True, timeout=WALL)
             self.assertEqual(out.returncode, 1, f"{node} {param}: exit {out.returncode}, {out.stderr[-300:]}")
             self.assertIn(text, out.stderr)
