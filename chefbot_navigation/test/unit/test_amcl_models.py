@@ -145,13 +145,13 @@ def test_a_pose_pushed_through_a_thick_wall_no_longer_fits() -> None:
     shifts = np.round(np.arange(-0.3, 0.301, 0.01), 2)
     plain = LikelihoodField(occ, LaserModel(sigma_hit=0.1))
     w0 = _weights_along_x(plain, ends, None, shifts)
-    truth = w0[shifts == 0.0][0]
+    truth = w0[np.isclose(shifts, 0.0)][0]
     # without the check the end points 0.2 m into the wall sit on its far face: a second, equal peak
-    assert w0[shifts == 0.2][0] == pytest.approx(truth, rel=0.01)
+    assert w0[np.isclose(shifts, 0.2)][0] == pytest.approx(truth, rel=0.01)
     checked = LikelihoodField(occ, LaserModel(sigma_hit=0.1, through_dist=0.15))
     w1 = _weights_along_x(checked, ends, points_before(ends, laser, 0.15), shifts)
-    assert w1[shifts == 0.0][0] == pytest.approx(truth)
-    assert shifts[np.argmax(w1)] == 0.0
+    assert w1[np.isclose(shifts, 0.0)][0] == pytest.approx(truth)
+    assert shifts[np.argmax(w1)] == pytest.approx(0.0)
     assert np.all(w1[shifts >= 0.2] < 1.0 + 0.05 * (truth - 1.0))     # only the random term is left
 
 

@@ -38,6 +38,11 @@ def test_ray_marks_free_cells_and_end_cell():
     assert (g.to_occupancy().data[row, 10:20] == FREE).all()         # 3 passes: p 0.11 < 0.196
 
 
+def _same_pose(a: Pose2D, b: Pose2D, tol: float = 1e-9) -> bool:
+    """Equal up to rounding (1e-9 m / rad): a solver's or wrap's last bit differs between CPUs."""
+    return a.distance(b) < tol and abs(wrap_angle(a.yaw - b.yaw)) < tol
+
+
 def test_no_return_beam_clears_without_marking_and_each_cell_once_per_scan():
     g = LogOddsGrid(0.1, (-1.0, -1.0, 1.0, 1.0))
     ends = np.array([[0.55, 0.05], [0.55, 0.07]])       # two beams through the same cells
@@ -457,7 +462,7 @@ def test_pose_graph_reaches_scipy_least_squares_optimum():
         assert cost == pytest.approx(huber_cost(residual(ours)))
         assert cost <= ref.cost * (1 + 1e-6) + 1e-9, (cost, ref.cost)
         assert np.abs(ours.reshape(-1, 3)[:, :2] - ref.x.reshape(-1, 3)[:, :2]).max() < 1e-3
-        assert g.poses[0] == Pose2D(*x0[0])                       # the first node holds the frame
+        assert _same_pose(g.poses[0], Pose2D(*x0[0]))             # the first node holds the frame
 
 
 def test_pose_graph_with_a_node_no_edge_reaches_keeps_it():
@@ -466,4 +471,4 @@ def test_pose_graph_with_a_node_no_edge_reaches_keeps_it():
         g.add_node(p)
     g.add_edge(0, 1, Pose2D(1, 0, 0), (0.05, 0.05, 0.02))
     g.optimize()
-    assert g.poses[1].distance(Pose2D(1, 0, 0)) < 1e-6 and g.poses[2] == Pose2D(7, 7, 1)
+    assert g.poses[1].distance(Pose2D(1, 0, 0)) < 1e-6 and _same_pose(g.poses[2], Pose2D(7, 7, 1))

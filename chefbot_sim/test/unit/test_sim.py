@@ -169,7 +169,7 @@ def test_schedule_rates(sim):
 
 def test_camera_model_and_info():
     cam = CameraModel.from_fov(160, 120, math.radians(58.0))
-    assert cam.cx == 79.5 and cam.cy == 59.5
+    assert (cam.cx, cam.cy) == pytest.approx((79.5, 59.5))
     d = cam.rays(np.array([59.5]), np.array([0.0, 159.0]))
     assert d[0, 0] == pytest.approx(-math.tan(math.radians(29.0)) * 159 / 160)
     info = cam.info()

@@ -71,9 +71,9 @@ objects:
   - {name: s, shape: sphere, radius: 0.1, pose: [3, 3, 0.75, 0], colour: [1, 0, 0]}
 """)
     b, c, s = w.shapes
-    assert b.kind == "box" and b.size == (2, 1, 0.5) and b.position == (1, 2, 0.25) and b.yaw == 0.3
-    assert c.position == (0, 0, 0.5) and c.size == (0.2, 1.0)
-    assert s.position == (3, 3, 0.85) and s.colour == (1, 0, 0, 1)
+    assert b.kind == "box" and b.size == (2, 1, 0.5) and b.position == pytest.approx((1, 2, 0.25)) and b.yaw == 0.3
+    assert c.position == pytest.approx((0, 0, 0.5)) and c.size == (0.2, 1.0)
+    assert s.position == pytest.approx((3, 3, 0.85)) and s.colour == (1, 0, 0, 1)   # z: pose 0.75 + radius
 
 
 def test_sdf_state_overrides_pose_and_scales():
