@@ -5,9 +5,9 @@ Starts a private ROS master and `chefbot_sim navigation_demo.launch` (pybullet
 hotel + map server + amcl + move_base; by default firmware-in-the-loop: our
 firmware core on a pty driven by chefbot_bringup's unmodified robot_standalone.launch,
 diff_tf taking the heading from the IMU), prints the robot's TF tree,
-then a real move_base action client delivers to all nine tables of the shared
+then a real move_base action client delivers to every destination of the
 tables YAML and returns home, printing one line per leg (path length, time,
-final ground-truth error) and a final ``delivered N/9 tables in T s``.  With a
+final ground-truth error) and a final ``delivered N/M tables in T s``.  With a
 display (or CHEFBOT_DEMO_GUI=1, `make demo GUI=1`) the restaurant's delivery GUI
 (chefbot_gui) is that client: it gets every table queued and drives the route
 (2 s at each table, then home), pybullet's window opens too, and the demo only
@@ -16,7 +16,7 @@ the scripted client.
 
 A table counts as delivered when move_base reports SUCCEEDED and the
 simulator's ground truth is within 0.05 m / 0.05 rad of the table pose.
-Exit code 0 only when all nine were delivered; nothing is left running,
+Exit code 0 only when all were delivered; nothing is left running,
 Ctrl-C included.  Results also go to build/demo/delivery.json, the route (ground truth,
 localization estimate, plans) to build/demo/trajectory.json, and its plots to
 build/demo/*.png (tools/plots.py).
@@ -30,8 +30,9 @@ default, or plugin: the sim applies cmd_vel and publishes wheel odometry itself;
 DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the IMU -- diff_tf's
 use_imu in the firmware drive, the sim's odom_imu_heading in the plugin drive; 0: wheel-only
 heading); CHEFBOT_DEMO_SLAM=1 (`make demo SLAM=1`): first map the world with our SLAM, save the map,
-localize on it and deliver there (tools/slam_demo.py).  Every name starting with ``table`` in the tables
-file is a delivery target.
+localize on it and deliver there (tools/slam_demo.py).  Every pose of the tables file but ``home``
+is a delivery target, whatever its name (or the file's ``destinations`` list); a file with none is
+an error naming it.
 A tables file of a map whose frame is not the world's (a SLAM map, e.g. hotel_tables_slam.yaml
 by ``align_tables``) carries ``map_in_world``: the robot is spawned at that pose composed with
 ``home`` (amcl starts at ``home`` in the map frame) and ground truth is compared with each goal
@@ -127,9 +128,14 @@ def site_files() -> dict[str, str]:
     return site
 
 
-def table_names(tables: dict) -> list[str]:
-    """The tables to deliver to: every ``table*`` of the file, or CHEFBOT_DEMO_TABLES (checked against it)."""
-    names = [n for n in tables if n.startswith("table")]
+def table_names(tables: dict, tables_file: str | Path) -> list[str]:
+    """The destinations to deliver to: the tables file's (every pose but ``home``, or its ``destinations``
+    list), or CHEFBOT_DEMO_TABLES (checked against the file)."""
+    from chefbot_common.tables import TablesError, load_destinations
+    try:
+        names = load_destinations(tables_file)
+    except TablesError as exc:
+        raise DemoInputError(str(exc)) from None
     subset = os.environ.get("CHEFBOT_DEMO_TABLES")
     if subset:
         names = [n.strip() for n in subset.split(",") if n.strip()]
@@ -166,7 +172,8 @@ def main() -> int:
         say(f"ERROR: CHEFBOT_DEMO_DRIVE must be plugin or firmware, got {drive!r}")
         return 2
     use_imu = os.environ.get("CHEFBOT_DEMO_USE_IMU", "true") not in ("0", "false", "")
-    say(f"starting the simulated hotel with navigation ({drive} drive{', IMU heading' if use_imu else ''}; "
+    world = Path(site["world"]).stem if site["world"] else "hotel"   # navigation_demo.launch's default world
+    say(f"starting the simulated {world} with navigation ({drive} drive{', IMU heading' if use_imu else ''}; "
         f"master {uri}, real-time factor {rtf}); "
         f"log: {log.relative_to(ROOT)}")
     say(f"to watch: ROS_MASTER_URI={uri} roslaunch chefbot_gui robot_gui.launch  (or rviz)")
@@ -179,7 +186,8 @@ def main() -> int:
     try:
         tables = load_tables(tables_file)
         map_in_world = load_map_in_world(tables_file)
-    except TablesError as exc:
+        names = table_names(tables, tables_file)
+    except (TablesError, DemoInputError) as exc:
         say(f"ERROR: {exc}")
         return 2
     if site["world"]:
@@ -200,11 +208,6 @@ def main() -> int:
         sys.path.insert(0, str(ROOT / "tools"))
         from delivery import DeliveryClient, launch_map_file, save_route_report
 
-        try:
-            names = table_names(tables)
-        except DemoInputError as exc:
-            say(f"ERROR: {exc}")
-            return 2
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while not rosgraph.Master("/chefbot_demo").is_online():
             if time.monotonic() > deadline:

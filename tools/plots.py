@@ -162,7 +162,7 @@ def plot_trajectory(traj: dict, out: Path, map_file: Path | None = None) -> Path
     # every leg's goal (table delivery poses and home) once, with its heading
     goals: dict[str, list[float]] = {leg["name"]: leg["goal"] for leg in traj["legs"]}
     for name, (gx, gy, gyaw) in goals.items():
-        home = not name.startswith("table")
+        home = name == "home"
         ax.plot(gx, gy, marker="s" if home else "o", ms=7, color="tab:red" if home else "tab:purple",
                 mec="black", zorder=5)
         ax.annotate("", xy=(gx + 0.35 * math.cos(gyaw), gy + 0.35 * math.sin(gyaw)), xytext=(gx, gy),

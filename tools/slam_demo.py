@@ -111,7 +111,7 @@ def run() -> int:
         return 2
     world_pose = {k: tables_in_world.compose(p) for k, p in tables.items()}   # the tables in the world frame
     try:
-        names = table_names(tables)
+        names = table_names(tables, tables_file)
     except DemoInputError as exc:
         say(f"ERROR: {exc}")
         return 2

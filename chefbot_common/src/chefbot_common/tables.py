@@ -1,4 +1,7 @@
-"""Named delivery poses of a restaurant (``home``, ``table_1`` ...) read from a tables YAML (pure).
+"""Named delivery poses of a restaurant (``home``, ``table_1``, ``bar`` ...) read from a tables YAML (pure).
+
+Every pose but ``home`` is a destination, whatever its name, unless the file lists its
+destinations (``destinations: [...]``); :func:`load_destinations` gives them.
 
 The site's tables file lives beside its map in ``chefbot_navigation/maps/``;
 the GUI, the demo and the scenario tests read it through :func:`load_tables`.
@@ -16,6 +19,10 @@ from chefbot_common.geometry import Pose2D
 
 class TablesError(ValueError):
     """A tables file is invalid; the message names the file and the entry."""
+
+
+#: Poses that are never destinations: the robot's start and rest pose.
+NOT_DESTINATIONS = frozenset({"home"})
 
 
 def _number(v: Any, where: str) -> float:
@@ -78,9 +85,11 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
           table_1: {x: 2.05, y: -3.0, yaw: 0.0}
 
     ``yaw`` in rad (default 0).  ``home`` is required; names are unique by YAML
-    construction.  An optional ``map_in_world: {x, y, yaw}`` is test-oracle data
-    (see :func:`load_map_in_world`).  Raises :class:`TablesError` naming the file
-    and the entry.
+    construction and may be anything (``table_1``, ``round_1``, ``bar``).  An optional
+    ``destinations: [name, ...]`` says which poses are destinations (default: every
+    pose but ``home``; see :func:`load_destinations`).  An optional
+    ``map_in_world: {x, y, yaw}`` is test-oracle data (see :func:`load_map_in_world`).
+    Raises :class:`TablesError` naming the file and the entry.
     """
     path = Path(path)
     try:
@@ -93,7 +102,7 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
         raise TablesError(f"{path}: invalid YAML: {e}") from e
     if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):
         raise TablesError(f"{path}: expected a mapping with a 'poses' mapping")
-    unknown = set(data) - {"frame", "world", "poses", "map_in_world"}
+    unknown = set(data) - {"frame", "world", "poses", "map_in_world", "destinations"}
     if unknown:
         raise TablesError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
     frame = data.get("frame", "map")
@@ -104,4 +113,36 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
     out = {str(name): _pose(p, f"{path}: poses.{name}") for name, p in data["poses"].items()}
     if "home" not in out:
         raise TablesError(f"{path}: missing the 'home' pose")
+    if "destinations" in data:
+        _destinations(data, out, path)   # a file with only 'home' is fine here, not to deliver to
     return out
+
+
+def _destinations(data: dict, poses: dict[str, Pose2D], path: Path) -> list[str]:
+    """The destination names of a parsed tables file (file order), or :class:`TablesError`."""
+    if "destinations" in data:
+        listed = data["destinations"]
+        if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
+            raise TablesError(f"{path}: destinations must be a list of pose names, got {listed!r}")
+        unknown = [n for n in listed if n not in poses]
+        if unknown:
+            raise TablesError(f"{path}: destinations names unknown pose(s) {unknown}; poses: {sorted(poses)}")
+        reserved = [n for n in listed if n in NOT_DESTINATIONS]
+        if reserved:
+            raise TablesError(f"{path}: {reserved} cannot be a destination (the robot's start and rest pose)")
+        if len(set(listed)) != len(listed):
+            raise TablesError(f"{path}: destinations lists a pose twice: {listed}")
+        names = list(listed)
+    else:
+        names = [n for n in poses if n not in NOT_DESTINATIONS]
+    if not names:
+        raise TablesError(f"{path}: no destinations: add a pose besides 'home' (any name: table_1, bar, ...)")
+    return names
+
+
+def load_destinations(path: str | Path) -> list[str]:
+    """The destinations of a tables file in file order: its ``destinations`` list, else every pose
+    but ``home``.  Raises :class:`TablesError` naming the file (zero destinations is an error)."""
+    poses = load_tables(path)
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    return _destinations(data, poses, Path(path))

@@ -76,3 +76,38 @@ def test_format_round_trips_with_map_in_world(tmp_path: Path) -> None:
     bad.write_text("poses: {home: {x: 0, y: 0}}\nmap_in_world: {x: 1, yaw: 0}\n")
     with pytest.raises(TablesError, match="map_in_world: missing field 'y'"):
         load_tables(bad)
+
+
+def test_every_pose_but_home_is_a_destination_whatever_its_name(tmp_path: Path) -> None:
+    from chefbot_common.tables import load_destinations
+    p = tmp_path / "bistro.yaml"
+    p.write_text("poses:\n  round_1: {x: 1, y: 0}\n  home: {x: 0, y: 0}\n  bar: {x: 2, y: 1}\n")
+    assert load_destinations(p) == ["round_1", "bar"]            # the file's order
+
+
+def test_the_file_may_list_its_destinations(tmp_path: Path) -> None:
+    from chefbot_common.tables import load_destinations
+    p = tmp_path / "t.yaml"
+    p.write_text("destinations: [bar, round_1]\n"
+                 "poses: {home: {x: 0, y: 0}, kitchen: {x: 3, y: 0}, round_1: {x: 1, y: 0}, bar: {x: 2, y: 1}}\n")
+    assert load_destinations(p) == ["bar", "round_1"]
+    assert set(load_tables(p)) == {"home", "kitchen", "round_1", "bar"}
+
+
+@pytest.mark.parametrize("text, words", [
+    ("poses: {home: {x: 0, y: 0}}", ["no destinations", "besides 'home'"]),
+    ("destinations: []\nposes: {home: {x: 0, y: 0}, bar: {x: 1, y: 0}}", ["no destinations"]),
+    ("destinations: [bar, sofa]\nposes: {home: {x: 0, y: 0}, bar: {x: 1, y: 0}}", ["unknown pose", "sofa"]),
+    ("destinations: [home]\nposes: {home: {x: 0, y: 0}, bar: {x: 1, y: 0}}", ["cannot be a destination"]),
+    ("destinations: bar\nposes: {home: {x: 0, y: 0}, bar: {x: 1, y: 0}}", ["must be a list"]),
+    ("destinations: [bar, bar]\nposes: {home: {x: 0, y: 0}, bar: {x: 1, y: 0}}", ["twice"]),
+])
+def test_destination_errors_name_the_file(tmp_path: Path, text: str, words: list) -> None:
+    from chefbot_common.tables import load_destinations
+    p = tmp_path / "t.yaml"
+    p.write_text(text)
+    with pytest.raises(TablesError) as e:
+        load_destinations(p)
+    assert str(p) in str(e.value)
+    for w in words:
+        assert w in str(e.value)

@@ -143,14 +143,20 @@ def _sort_key(key: str) -> tuple[int, int, str]:
     return (0, int(m.group(1)), "") if m else (1, 0, key)
 
 
-def make_destinations(poses: Mapping[str, PoseLike]) -> tuple[Destination, list[Destination]]:
+def make_destinations(poses: Mapping[str, PoseLike],
+                      destinations: Sequence[str] | None = None) -> tuple[Destination, list[Destination]]:
     """Split loaded poses into ``home`` and the tables, tables numerically sorted, labels unique.
 
-    Raises ``ValueError`` when ``home`` is missing or there is no table.
+    ``destinations``: the keys that are tables (the tables file's ``destinations`` list); default
+    every pose but ``home``, whatever its name.  Raises ``ValueError`` when ``home`` is missing,
+    a destination is not a pose, or there is no table.
     """
     if HOME not in poses:
         raise ValueError("the tables file has no 'home' pose")
-    keys = [k for k in sorted(poses, key=_sort_key) if k != HOME]
+    if destinations is not None and (unknown := [k for k in destinations if k not in poses or k == HOME]):
+        raise ValueError(f"destinations {unknown} are not table poses of the tables file")
+    chosen = set(poses if destinations is None else destinations)
+    keys = [k for k in sorted(poses, key=_sort_key) if k != HOME and k in chosen]
     if not keys:
         raise ValueError("the tables file has no table poses")
     labels = [table_label(k) for k in keys]
@@ -180,7 +186,8 @@ def fmt_eta(seconds: float) -> str:
 class DeliveryPresenter:
     """State machine of a delivery run: queue → drive → wait → … → home.
 
-    Parameters: ``poses`` (map-frame poses by key, must include ``home``),
+    Parameters: ``poses`` (map-frame poses by key, must include ``home``), ``destinations``
+    (the keys staff can send the robot to; default every pose but ``home``),
     ``robot`` (a :class:`RobotPort`), ``clock`` (monotonic seconds),
     ``connect_timeout_s`` (how long "connecting…" may last before "robot not
     connected"), ``wait_time_s`` (time at a table before moving on; 0 = only
@@ -190,12 +197,13 @@ class DeliveryPresenter:
 
     def __init__(self, poses: Mapping[str, PoseLike], robot: RobotPort, clock: Callable[[], float],
                  connect_timeout_s: float = 5.0, wait_time_s: float = 30.0, speed_mps: float = 0.3,
-                 order_mode: OrderMode = OrderMode.FIFO, diagnostics_timeout_s: float = 5.0) -> None:
+                 order_mode: OrderMode = OrderMode.FIFO, diagnostics_timeout_s: float = 5.0,
+                 destinations: Sequence[str] | None = None) -> None:
         if speed_mps <= 0:
             raise ValueError(f"speed_mps must be > 0, got {speed_mps}")
         if wait_time_s < 0:
             raise ValueError(f"wait_time_s must be >= 0, got {wait_time_s}")
-        self.home, self.tables = make_destinations(poses)
+        self.home, self.tables = make_destinations(poses, destinations)
         self._by_key = {d.key: d for d in [self.home, *self.tables]}
         self._robot = robot
         self._clock = clock

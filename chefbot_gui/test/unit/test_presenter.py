@@ -109,6 +109,18 @@ def test_labels_stay_unique_for_lookalike_keys() -> None:
     assert len({*labels.values(), "Home"}) == len(labels) + 1
 
 
+def test_any_name_is_a_table_unless_the_file_lists_its_destinations() -> None:
+    poses = {"home": Pose(0, 0), "round_1": Pose(1, 0), "bar": Pose(2, 0), "kitchen": Pose(3, 0)}
+    _, tables = make_destinations(poses)
+    assert {t.key for t in tables} == {"round_1", "bar", "kitchen"}
+    _, tables = make_destinations(poses, ["bar", "round_1"])
+    assert {t.key for t in tables} == {"round_1", "bar"}
+    with pytest.raises(ValueError, match="sofa"):
+        make_destinations(poses, ["bar", "sofa"])
+    with pytest.raises(ValueError, match="no table"):
+        make_destinations(poses, [])
+
+
 def test_missing_home_or_tables_rejected() -> None:
     with pytest.raises(ValueError, match="home"):
         make_destinations({"table_1": Pose(0, 0)})
