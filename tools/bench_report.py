@@ -112,9 +112,9 @@ def render_report(rows: list[dict], meta: dict) -> str:
         benches.setdefault(str(r.get("bench")), []).append(r)
     met = [r.get("met") for r in rows]
     n_yes, n_no = met.count(True), met.count(False)
-    out += ["", f"{len(rows)} figures from {len(benches)} benchmarks: {n_yes} goals met, "
-                f"{n_no} not met (NO), {len(rows) - n_yes - n_no} without a goal (-).",
-            "Columns: *ours* is the figure measured here; *reference* is what it is compared with "
+    out += ["", f"{len(rows)} figures from {len(benches)} benchmarks. Goal met: {n_yes}; "
+                f"not met (NO): {n_no}; no goal (-): {len(rows) - n_yes - n_no}.",
+            "", "Columns: *ours* is the figure measured here; *reference* is what it is compared with "
             "(its source in brackets); *met* says whether *ours* reaches the *goal*."]
     failed = meta.get("failed") or []
     if failed:
@@ -187,7 +187,7 @@ def _os_name() -> str:
 def collect_meta() -> dict:
     """Facts of this machine and checkout, taken at the start of a run."""
     status = _git("status", "--porcelain")
-    return {"date_utc": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+    return {"date_utc": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M"),
             "commit": _git("rev-parse", "--short", "HEAD"),
             "dirty": bool(status) if status is not None else None,
             "cpu": _cpu_model(), "cores": os.cpu_count(), "memory_bytes": _memory_bytes(),
@@ -198,10 +198,12 @@ def collect_meta() -> dict:
 def meta_from_doc(doc: dict) -> dict:
     """The report's meta from a bench JSON; older files without ``meta`` give what they have."""
     meta = dict(doc.get("meta") or {})
-    if not meta.get("date_utc") and doc.get("time_utc"):
+    if meta.get("date_utc"):
+        meta["date_utc"] = str(meta["date_utc"]).removesuffix(" UTC")   # the column says UTC already
+    elif doc.get("time_utc"):
         try:
             t = dt.datetime.strptime(doc["time_utc"], "%Y%m%dT%H%M%SZ")
-            meta["date_utc"] = t.strftime("%Y-%m-%d %H:%M UTC")
+            meta["date_utc"] = t.strftime("%Y-%m-%d %H:%M")
         except ValueError:
             meta["date_utc"] = doc["time_utc"]
     for key in ("python", "seconds", "quick", "pattern", "failed", "sources"):

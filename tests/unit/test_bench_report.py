@@ -35,7 +35,7 @@ ROWS = [
     {"bench": "firmware", "case": "nan and inf", "metric": "s", "ours": float("nan"), "reference": float("inf"),
      "reference_name": "no limit", "goal": None, "met": None},
 ]
-META = {"date_utc": "2026-11-27 12:00 UTC", "commit": "abc1234", "dirty": True, "cpu": "Test CPU @ 3 GHz",
+META = {"date_utc": "2026-11-27 12:00", "commit": "abc1234", "dirty": True, "cpu": "Test CPU @ 3 GHz",
         "cores": 8, "memory_bytes": 16 * 2**30, "os": "Debian GNU/Linux 12 (bookworm)", "python": "3.11.2",
         "kernel": "6.1.0-test", "seconds": 1872.4, "quick": False, "pattern": None, "failed": [],
         "sources": {"serial parser": "chefbot_bringup/bench/bench_serial.py"}}
@@ -68,14 +68,14 @@ def test_header_has_the_run_facts():
     text = report.render_report(ROWS, META)
     assert text.startswith("# Benchmarks\n")
     assert "do not edit by hand" in text
-    assert "| Date (UTC) | 2026-11-27 12:00 UTC |" in text
+    assert "| Date (UTC) | 2026-11-27 12:00 |" in text
     assert "| Commit | abc1234 + uncommitted changes |" in text
     assert "| Machine | Test CPU @ 3 GHz, 8 cores, 16.0 GiB memory |" in text
     assert "| OS | Debian GNU/Linux 12 (bookworm), kernel 6.1.0-test |" in text
     assert "| Python | 3.11.2 |" in text
     assert "| Total time | 31 min 12 s |" in text
     assert "| Run | full run |" in text
-    assert "5 figures from 2 benchmarks: 1 goals met, 1 not met (NO), 3 without a goal (-)." in text
+    assert "5 figures from 2 benchmarks. Goal met: 1; not met (NO): 1; no goal (-): 3." in text
     clean = report.render_report(ROWS, dict(META, dirty=False))
     assert "| Commit | abc1234 |" in clean
 
@@ -107,7 +107,7 @@ def test_partial_runs_and_failures_are_marked():
 def test_missing_meta_and_no_rows():
     text = report.render_report([], {})
     assert "| Commit | unknown |" in text and "| Total time | unknown |" in text
-    assert "0 figures from 0 benchmarks" in text
+    assert "0 figures from 0 benchmarks." in text
 
 
 def test_render_is_pure():
@@ -128,6 +128,6 @@ def test_cli_regenerates_from_json(tmp_path):
                          capture_output=True, text=True, timeout=60, check=False)
     assert res.returncode == 0, res.stderr
     text = out.read_text()
-    assert "| Date (UTC) | 2026-11-27 12:00 UTC |" in text
+    assert "| Date (UTC) | 2026-11-27 12:00 |" in text
     assert "| Total time | 12.5 s |" in text
     assert "## serial parser" in text
