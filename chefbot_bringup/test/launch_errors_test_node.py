@@ -81,7 +81,7 @@ class TestLaunchErrors(unittest.TestCase):
         self.assertEqual(bad, [], "\n\n".join(bad))
 
     def _ctrl_c_once(self, group: bool) -> tuple[int | None, str]:
-        link = f"/tmp/launch_errors_lp_{os.getpid()}"
+        link = os.path.join(tempfile.gettempdir(), f"launch_errors_lp_{os.getpid()}")
         board = VirtualBoard(link)
         running = threading.Event()
         running.set()
