@@ -10,10 +10,10 @@ wrap and vice versa.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
-from chefbot_common.params import ParamError
+from chefbot_common.params import ParamError, ParamSpec
 
 INT16_RANGE = (-32768, 32767)
 INT32_RANGE = (-(2**31), 2**31 - 1)
@@ -83,23 +83,37 @@ class TickUnwrapper:
         return raw + self._offset
 
 
+@dataclass(frozen=True)
+class EncoderParams:
+    """The encoder parameters of ``pid_velocity`` and ``diff_tf`` (global as in the book, private as fallback)."""
+
+    encoder_min: int | float = INT32_RANGE[0]   # ticks: lowest counter value
+                                                #   (pid_velocity with wheel_type Int16: -32768)
+    encoder_max: int | float = INT32_RANGE[1]   # ticks: highest counter value
+                                                #   (pid_velocity with wheel_type Int16: 32767)
+    wheel_low_wrap: float | None = None         # ticks: a jump from above wheel_high_wrap to below this is a
+                                                #   forward wrap (unset: 30 % of the range above encoder_min)
+    wheel_high_wrap: float | None = None        # ticks: see wheel_low_wrap (unset: 70 % of the range)
+
+    def __post_init__(self) -> None:
+        for name in ("encoder_min", "encoder_max", "wheel_low_wrap", "wheel_high_wrap"):
+            v = getattr(self, name)
+            optional = name.startswith("wheel_")
+            if not (optional and v is None) and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise ValueError(f"{name} must be a number, got {v!r}")
+
+
+ENCODER_PARAMS = ParamSpec(EncoderParams, {f.name: (f.name, "~" + f.name) for f in fields(EncoderParams)})
+
+
 def read_encoder_range(get: Callable[[str, Any], Any], default: tuple[int, int] = INT32_RANGE) -> EncoderRange:
-    """encoder_min/max and the wrap thresholds from parameters: global as in the book, private as fallback.
+    """encoder_min/max and the wrap thresholds from parameters (:data:`ENCODER_PARAMS`): global as in the
+    book, private as fallback; ``default``: the counter range when encoder_min/max are not set.
 
     ``get`` is ``rospy.get_param``; wrong types or values raise ParamError naming the parameter.
     """
-    def param(name: str, fallback: Any) -> Any:
-        return get(name, get("~" + name, fallback))
-
-    values = {}
-    for name, fallback in (("encoder_min", default[0]), ("encoder_max", default[1]),
-                           ("wheel_low_wrap", None), ("wheel_high_wrap", None)):
-        v = param(name, fallback)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-            raise ParamError(f"parameter {name} must be a number, got {v!r}")
-        values[name] = v
+    p = ENCODER_PARAMS.read(get, encoder_min=default[0], encoder_max=default[1])
     try:
-        return EncoderRange(int(values["encoder_min"]), int(values["encoder_max"]),
-                            values["wheel_low_wrap"], values["wheel_high_wrap"])
+        return EncoderRange(int(p.encoder_min), int(p.encoder_max), p.wheel_low_wrap, p.wheel_high_wrap)
     except ValueError as exc:
         raise ParamError(str(exc)) from exc
