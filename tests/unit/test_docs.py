@@ -239,7 +239,7 @@ def commands(code: str) -> list[tuple[str, list[str]]]:
     """``(command, arguments)`` for every roslaunch / rosrun / rostest / make in a piece of shell code."""
     found = []
     for segment in re.split(r"&&|\|\||[;|()`]", code):
-        words = segment.split()
+        words = [w.strip("'\"") for w in segment.split()]
         for i, w in enumerate(words):
             # not the value of a long option (`run_tests.py --only rostest`)
             if w in COMMANDS and not (i and words[i - 1].startswith("--") and "=" not in words[i - 1]):
@@ -408,6 +408,7 @@ def test_checker_accepts_good_references(tree: Workspace) -> None:
         "[robot_description]: command [...] returned` is no link.", "",
         "`roslaunch foo_pkg run.launch x:=1` `rosrun foo_pkg talker --arg` `rostest foo_pkg it.test`",
         "`make` `make demo GUI=1` `CHEFBOT_X=1 make test` `make -C sub sketch` `make -Csub all`",
+        "`keyboard_teleop: Run it in a terminal, e.g. 'roslaunch foo_pkg run.launch' (output=\"screen\")`",
         "`rosrun tf tf_echo map base_link` `roslaunch chefbot_gazebo world.launch` `rosrun PKG NODE`",
         "`roslaunch foo_pkg <your.launch>` `rosrun $(PKG) x` `roslaunch foo/launch/run.launch`", "",
         "```bash",
