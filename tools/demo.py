@@ -16,7 +16,7 @@ the scripted client.
 
 A table counts as delivered when move_base reports SUCCEEDED and the
 simulator's ground truth is within 0.05 m / 0.05 rad of the table pose.
-Exit code 0 only when all were delivered; nothing is left running,
+Exit code 0 only when all were delivered and the robot is back home; nothing is left running,
 Ctrl-C included.  Results also go to build/demo/delivery.json, the route (ground truth,
 localization estimate, plans) to build/demo/trajectory.json, and its plots to
 build/demo/*.png (tools/plots.py).
@@ -277,7 +277,7 @@ def main() -> int:
         say(line)
     say(f"back home: {'yes' if home and home.ok else 'NO'}; bumper contacts: {sum(leg.bumps for leg in legs)}")
     say(f"delivered {delivered}/{len(names)} tables in {sim_s:.1f} s (sim time; {wall_s:.1f} s wall)")
-    return 0 if delivered == len(names) else 1
+    return 0 if delivered == len(names) and home is not None and home.ok else 1   # and back home
 
 
 if __name__ == "__main__":

@@ -218,7 +218,7 @@ def run() -> int:
         f"false-occupied {100 * report['false_occupied']:.2f} % / {100 * report['coverage']:.1f} % mapped; "
         f"delivered {delivered}/{len(names)} tables on it in {sim_s:.1f} s sim "
         f"({time.monotonic() - t_wall0:.0f} s wall in all); results: {LOG_DIR / 'slam_demo.json'}")
-    return 0 if delivered == len(names) else 1
+    return 0 if delivered == len(names) and home_leg is not None and home_leg.ok else 1   # and back home
 
 
 def _deliver(tables: dict, world_pose: dict, names: list[str], map_in_world, alive, log: Path, prefix: Path):
