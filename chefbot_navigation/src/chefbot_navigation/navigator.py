@@ -38,7 +38,7 @@ import numpy as np
 
 from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
 from chefbot_common.map_io import MAX_MAP_CELLS
-from chefbot_common.params import read_config
+from chefbot_common.params import private_spec
 from chefbot_navigation.controller import CONTROLLERS, ControllerParams, LocalController, make_controller
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, CostmapParams, LayeredCostmap
 from chefbot_navigation.footprint import Footprint
@@ -133,22 +133,21 @@ class NodeParams:
             raise ValueError("global_publish_frequency and local_publish_frequency must be >= 0 Hz")
 
 
-def _names(cls: type, prefix: str) -> dict[str, str]:
-    """Private parameter name ``~<prefix><field>`` of every field of ``cls``."""
-    return {f.name: f"~{prefix}{f.name}" for f in dataclasses.fields(cls)}
+# move_base's params in the layout of param/move_base.yaml: read by read_move_base_params, listed in the node's PARAMS
+MOVE_BASE_PARAMS = (
+    private_spec(NodeParams),
+    private_spec(NavigatorParams),
+    private_spec(ControllerParams, "controller/", xy_goal_tolerance="~xy_goal_tolerance",
+                 yaw_goal_tolerance="~yaw_goal_tolerance", controller_frequency="~controller_frequency"),
+    private_spec(CostmapParams, "costmap/"),
+    private_spec(PlannerParams, "planner/"),
+)
 
 
 def read_move_base_params(get: Callable[[str, Any], Any]) -> tuple[NodeParams, NavigatorParams, ControllerParams,
                                                                     CostmapParams, PlannerParams]:
-    """All move_base params (layout of param/move_base.yaml); ParamError names a bad one."""
-    ctrl_names = _names(ControllerParams, "controller/")
-    ctrl_names.update(xy_goal_tolerance="~xy_goal_tolerance", yaw_goal_tolerance="~yaw_goal_tolerance",
-                      controller_frequency="~controller_frequency")
-    return (read_config(NodeParams, get, _names(NodeParams, "")),
-            read_config(NavigatorParams, get, _names(NavigatorParams, "")),
-            read_config(ControllerParams, get, ctrl_names),
-            read_config(CostmapParams, get, _names(CostmapParams, "costmap/")),
-            read_config(PlannerParams, get, _names(PlannerParams, "planner/")))
+    """All move_base params (:data:`MOVE_BASE_PARAMS`); ParamError names a bad one."""
+    return tuple(spec.read(get) for spec in MOVE_BASE_PARAMS)
 
 
 class GoalError(ValueError):

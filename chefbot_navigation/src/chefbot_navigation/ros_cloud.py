@@ -8,7 +8,6 @@ are logged (throttled) and skipped.
 """
 from __future__ import annotations
 
-import dataclasses
 import threading
 import time
 from collections.abc import Callable
@@ -18,12 +17,14 @@ import rospy
 from sensor_msgs.msg import PointCloud2
 from tf.transformations import quaternion_matrix
 
-from chefbot_common.params import read_config
+from chefbot_common.params import private_spec
 from chefbot_navigation.costmap import LayeredCostmap
 from chefbot_navigation.pointcloud_layer import CloudLayerParams, PointCloudLayer
 from chefbot_navigation.ros_util import TF_ERRORS
 from chefbot_vision.cloud import CloudError, transform_points
 from chefbot_vision.ros_io import cloud_xyz
+
+CLOUD = private_spec(CloudLayerParams, "pointcloud_layer/")   # move_base's ~pointcloud_layer/<name> params
 
 
 class CloudInput:
@@ -31,8 +32,7 @@ class CloudInput:
 
     def __init__(self, tf_buffer, global_frame: str, lock: threading.RLock,
                  layers: Callable[[], LayeredCostmap | None]) -> None:
-        names = {f.name: f"~pointcloud_layer/{f.name}" for f in dataclasses.fields(CloudLayerParams)}
-        self.params = read_config(CloudLayerParams, rospy.get_param, names)
+        self.params = CLOUD.read(rospy.get_param)
         self.buffer, self.global_frame, self.lock, self.layers = tf_buffer, global_frame, lock, layers
         self.last_cost = 0.0   # s of CPU per cloud (the latest), for logs and the bench
         if self.params.enabled:

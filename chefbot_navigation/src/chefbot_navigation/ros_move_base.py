@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
@@ -22,7 +23,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Empty, EmptyResponse
 
 from chefbot_common.geometry import Pose2D
-from chefbot_common.params import ParamError
+from chefbot_common.params import ParamError, ParamSpec
 from chefbot_navigation.controller import arc_points
 from chefbot_navigation.footprint import Footprint, resolve_footprint
 from chefbot_navigation.health import TaskHealth
@@ -32,12 +33,23 @@ from chefbot_navigation.ros_io import occupancy_to_msg, path_to_msg, pose2d_to_p
 from chefbot_navigation.ros_util import PlanarTf, periodic
 
 
+@dataclass(frozen=True)
+class UrdfParams:
+    """The robot model, for the footprint."""
+
+    robot_description: str = field(default="", repr=False)   # URDF (relative name, as robot_state_publisher's):
+                                                              #   the footprint when costmap/footprint is urdf
+
+
+URDF = ParamSpec(UrdfParams, {"robot_description": "robot_description"})
+
+
 def load_footprint(cost_p: Any, base_frame: str = "base_footprint") -> Footprint:
-    """The robot's footprint from the costmap params (or the URDF on ``robot_description``, in
-    ``base_frame``: the robot_base_frame, prefixed in a namespace), logged; ParamError naming the
+    """The robot's footprint from the costmap params (or the URDF on ``robot_description`` (:data:`URDF`),
+    in ``base_frame``: the robot_base_frame, prefixed in a namespace), logged; ParamError naming the
     problem if it is unusable."""
     try:
-        urdf = rospy.get_param("robot_description", "")
+        urdf = URDF.read(rospy.get_param).robot_description
         footprint, source = resolve_footprint(cost_p.footprint, cost_p.footprint_padding, cost_p.robot_radius,
                                               urdf, base_frame)
     except ValueError as exc:

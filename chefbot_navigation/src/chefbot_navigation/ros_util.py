@@ -4,7 +4,6 @@ tf lookups (:class:`PlanarTf`), a wall-clock wait for an action server (:func:`w
 a SimpleActionClient without its send_goal race (:class:`GoalClient`)."""
 from __future__ import annotations
 
-import dataclasses
 import sys
 import threading
 import time
@@ -21,7 +20,7 @@ from nav_msgs.msg import OccupancyGrid
 from nav_msgs.srv import GetMap
 
 from chefbot_common.geometry import Pose2D
-from chefbot_common.params import ParamError, read_config
+from chefbot_common.params import ParamError, ParamSpec, private_spec
 from chefbot_navigation.health import TaskHealth
 from chefbot_navigation.navigator import link_fault, pose_age_fault, stalest_link
 from chefbot_navigation.ros_io import transform_to_pose2d
@@ -117,11 +116,13 @@ def lookup_transform_wall(buffer: tf2_ros.Buffer, target: str, source: str, stam
     return buffer.lookup_transform(target, source, stamp)
 
 
-def read_private_config(cls: type, who: str) -> Any | None:
-    """``cls`` (a config dataclass) from the node's private params named as its fields; None after
-    logging the ParamError (and printing it to stderr, which roslaunch shows) naming the param."""
+def read_private_config(spec: ParamSpec | type, who: str) -> Any | None:
+    """The config dataclass of ``spec`` (a class: its fields as private params) read from the parameter
+    server; None after logging the ParamError (and printing it to stderr, which roslaunch shows)."""
+    if not isinstance(spec, ParamSpec):
+        spec = private_spec(spec)
     try:
-        return read_config(cls, rospy.get_param, {f.name: f"~{f.name}" for f in dataclasses.fields(cls)})
+        return spec.read(rospy.get_param)
     except ParamError as exc:
         rospy.logfatal(f"{who}: {exc}")
         print(f"{who}: {exc}", file=sys.stderr)
