@@ -4,13 +4,12 @@ Defaults and units: ``param/sim.yaml`` and the package README.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from chefbot_common.params import ParamError, read_config
+from chefbot_common.params import ParamError, private_spec
 from chefbot_sim.sim import SimOptions
 
 DEFAULT_FIRMWARE_MAX_RTF = 0.0   # no cap; see README "Real-time factor in firmware mode"
@@ -59,13 +58,25 @@ class SimNodeParams:
         return self.real_time_factor
 
 
+@dataclass(frozen=True)
+class CliffTopicsParams:
+    """Where each cliff sensor publishes (checked against the robot's sensors by :func:`cliff_topics`)."""
+
+    cliff_topics: dict = field(default_factory=dict)   # URDF cliff sensor name -> relative Range topic
+                                                       #   (a sensor not listed: cliff/<name without cliff_>)
+
+
+# what chefbot_sim_node reads (its PARAMS): the node's own params, the Simulator's options (every
+# SimOptions field but time_step) and the cliff topics, as ``~name``; robot_description relative
+SIM_NODE = private_spec(SimNodeParams, robot_description="robot_description")
+SIM_OPTIONS = private_spec(SimOptions, skip=("time_step",))
+CLIFF_TOPICS = private_spec(CliffTopicsParams)
+
+
 def read_sim_params(get: Callable[[str, Any], Any]) -> tuple[SimNodeParams, SimOptions]:
-    """The node's params and the Simulator's options (every SimOptions field but time_step) as ``~name``."""
-    names = {f.name: f"~{f.name}" for f in dataclasses.fields(SimNodeParams)}
-    names["robot_description"] = "robot_description"
-    node = read_config(SimNodeParams, get, names)
-    opts = read_config(SimOptions, get, {f.name: f"~{f.name}" for f in dataclasses.fields(SimOptions)
-                                         if f.name != "time_step"})
+    """The node's params (:data:`SIM_NODE`) and the Simulator's options (:data:`SIM_OPTIONS`)."""
+    node = SIM_NODE.read(get)
+    opts = SIM_OPTIONS.read(get)
     opts.validate()
     return node, opts
 
