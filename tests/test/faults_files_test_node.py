@@ -47,6 +47,8 @@ class FaultsFilesTest(unittest.TestCase):
         cls.bad_params.write_text("controller_frequency: 10.0\ncontroller: {max_vel_x: 0.35\n")
         cls.bad_tables = d / "bad_tables.yaml"
         cls.bad_tables.write_text("frame: map\nposes:\n  home: {x: 0.0, y: 0.0, yaw: 0.0\n  table_1: [2.05\n")
+        cls.no_destinations = d / "home_only_tables.yaml"    # valid YAML, nothing to deliver to
+        cls.no_destinations.write_text("frame: map\nposes:\n  home: {x: 0.0, y: 0.0, yaw: 0.0}\n")
 
     @classmethod
     def tearDownClass(cls) -> None:
@@ -100,6 +102,15 @@ class FaultsFilesTest(unittest.TestCase):
     def test_f_demo_with_a_corrupt_tables_file(self) -> None:
         env = dict(os.environ, CHEFBOT_DEMO_TABLES_FILE=str(self.bad_tables))
         self.check("make demo, corrupt tables", ["python3", str(ROOT / "tools" / "demo.py")], self.bad_tables, env)
+
+
+    def test_g_demo_and_gui_with_a_tables_file_without_destinations(self) -> None:
+        env = dict(os.environ, CHEFBOT_DEMO_TABLES_FILE=str(self.no_destinations))
+        self.check("make demo, no destinations", ["python3", str(ROOT / "tools" / "demo.py")],
+                   self.no_destinations, env)
+        self.check("robot_gui, no destinations", ["rosrun", "chefbot_gui", "robot_gui", "__name:=no_dest_gui",
+                                                  f"_tables_file:={self.no_destinations}"], self.no_destinations,
+                   dict(os.environ, QT_QPA_PLATFORM="offscreen"))
 
 
 if __name__ == "__main__":
