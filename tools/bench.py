@@ -26,6 +26,7 @@ import argparse
 import datetime as dt
 import importlib.util
 import json
+import os
 import platform
 import sys
 import time
@@ -119,7 +120,8 @@ def main() -> int:
     OUT.mkdir(exist_ok=True)
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     seconds = round(time.monotonic() - t0, 1)
-    meta.update(seconds=seconds, quick=args.quick, pattern=args.pattern, failed=failed, sources=sources)
+    meta.update(seconds=seconds, quick=args.quick, pattern=args.pattern, failed=failed, sources=sources,
+                load_end=round(os.getloadavg()[0], 2))
     doc = {"time_utc": stamp, "host": platform.node(), "python": platform.python_version(),
            "quick": args.quick, "seconds": seconds, "meta": meta, "rows": rows}
     for name in (f"bench-{stamp}.json", "latest.json"):

@@ -104,6 +104,7 @@ def render_report(rows: list[dict], meta: dict) -> str:
            f"| OS | {_cell(meta.get('os') or 'unknown')}, kernel {_cell(meta.get('kernel') or 'unknown')} |",
            f"| Python | {_cell(meta.get('python') or 'unknown')} |",
            f"| Total time | {fmt_duration(meta.get('seconds'))} |",
+           f"| Load average (1 min) | {_load(meta)} |",
            f"| Run | {_cell(run)} |"]
     if meta.get("source_json"):
         out.append(f"| Data | `{_cell(meta['source_json'])}` |")
@@ -185,6 +186,16 @@ def _os_name() -> str:
     return platform.system()
 
 
+def _load(meta: dict) -> str:
+    """The machine's 1-min load average at the run's start and end: figures under load are slower."""
+    start, end = meta.get("load_start"), meta.get("load_end")
+    if start is None and end is None:
+        return "unknown"
+    def one(x: object) -> str:
+        return fmt_value(x) if x is not None else "?"
+    return f"{one(start)} at the start, {one(end)} at the end"
+
+
 def collect_meta() -> dict:
     """Facts of this machine and checkout, taken at the start of a run."""
     status = _git("status", "--porcelain")
@@ -193,7 +204,7 @@ def collect_meta() -> dict:
             "dirty": bool(status) if status is not None else None,
             "cpu": _cpu_model(), "cores": os.cpu_count(), "memory_bytes": _memory_bytes(),
             "os": _os_name(), "python": platform.python_version(), "kernel": platform.release(),
-            "host": platform.node()}
+            "host": platform.node(), "load_start": round(os.getloadavg()[0], 2)}
 
 
 def meta_from_doc(doc: dict) -> dict:

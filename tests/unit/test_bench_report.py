@@ -131,3 +131,9 @@ def test_cli_regenerates_from_json(tmp_path):
     assert "| Date (UTC) | 2026-11-27 12:00 |" in text
     assert "| Total time | 12.5 s |" in text
     assert "## serial parser" in text
+
+
+def test_load_average_at_start_and_end_is_shown():
+    text = report.render_report(ROWS, dict(META, load_start=0.42, load_end=7.5))
+    assert "| Load average (1 min) | 0.42 at the start, 7.5 at the end |" in text
+    assert "| Load average (1 min) | unknown |" in report.render_report(ROWS, {})
