@@ -49,8 +49,9 @@ class LaunchpadConfig:
     battery_full_voltage: float = 12.7   # V, 100 %
     battery_low: float = 0.2            # fraction: WARN diagnostic at or below
     battery_critical: float = 0.05      # fraction: ERROR diagnostic at or below
-    ultrasonic_frame_id: str = "ultrasonic_link"
-    imu_frame_id: str = "gyro_link"
+    ultrasonic_frame_id: str = "ultrasonic_link"  # frame_id of ultrasonic (sensor_msgs/Range); a namespaced
+                                                  # robot (robot_standalone.launch) prefixes it and imu_frame_id
+    imu_frame_id: str = "gyro_link"     # frame_id of imu/data, the board's MPU6050 orientation
     event_driven: bool = True           # write a wheel command when it arrives (False: only on the control timer)
 
     def __post_init__(self) -> None:
