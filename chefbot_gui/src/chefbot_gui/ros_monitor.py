@@ -42,7 +42,7 @@ class MonitorParams:
     rosout_topic: str = "/rosout_agg"
     list_period_s: float = 2.0
     window_s: float = DEFAULT_WINDOW_S
-    log_capacity: int = DEFAULT_CAPACITY
+    log_capacity: int = DEFAULT_CAPACITY  # [lines] Console lines kept; the oldest are dropped (>= 1)
     master_timeout_s: float = 2.0
 
     def __post_init__(self) -> None:
