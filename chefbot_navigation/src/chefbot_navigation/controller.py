@@ -39,22 +39,25 @@ class ControllerParams:
     """Controller tunables (m, s, rad); names as move_base's local planners' where they match."""
 
     max_vel_x: float = 0.35              # m/s
-    max_vel_theta: float = 2.5           # rad/s
+    max_vel_theta: float = 2.5           # [rad/s] largest turn rate commanded (> 0); a tighter curve is driven slower
     min_in_place_vel_theta: float = 0.15  # rad/s, slowest useful rotation (static friction)
-    acc_lim_x: float = 0.8               # m/s^2
+    acc_lim_x: float = 0.8               # [m/s^2] rate limit of the linear command (> 0); also caps the speed so the
+                                         # robot can stop at the goal
     decel_lim_x: float = 1.6             # m/s^2, only used to stop for a collision
-    acc_lim_theta: float = 3.0           # rad/s^2
+    acc_lim_theta: float = 3.0           # [rad/s^2] rate limit of the angular command (> 0)
     decel_lim_theta: float = 2.0         # rad/s^2, turns on the spot brake at this (< acc_lim_theta: the
                                          # braking curve stays within the rate limiter's reach)
     rotation_latency: float = 0.1        # s from a pose to the wheels obeying its command (pose age, control
                                          # period, drive response): a turn brakes that much earlier
     lookahead_time: float = 1.2          # s, lookahead = v * time, clamped to the two below
-    min_lookahead_dist: float = 0.3      # m
-    max_lookahead_dist: float = 0.7      # m
+    min_lookahead_dist: float = 0.3      # [m] shortest lookahead, used at low speed (> 0)
+    max_lookahead_dist: float = 0.7      # [m] longest lookahead (>= min_lookahead_dist); closer than this to the
+                                         # goal, the goal approach (approach_gain) starts
     rotate_to_heading_angle: float = 0.7  # rad, rotate in place when the path leaves at a larger angle
     regulated_min_radius: float = 0.6    # m, slow down on curves tighter than this radius
     approach_gain: float = 0.8           # 1/s, v <= gain * distance to goal near the goal
-    min_approach_vel: float = 0.04       # m/s
+    min_approach_vel: float = 0.04       # [m/s] least forward speed near the goal (half of it elsewhere), so the
+                                         # robot does not stall short of the goal
     rotation_gain: float = 2.5           # 1/s, w <= gain * heading error
     near_obstacle_slowdown: float = 0.6  # fraction of speed removed at cost 252 under the robot
     collision_horizon: float = 1.0       # s of forward simulation for the collision check

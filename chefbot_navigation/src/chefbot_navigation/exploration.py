@@ -50,17 +50,19 @@ class ExploreConfig:
     min_frontier: float = 0.3        # frontier length (m, cells * resolution) worth a visit
     gain_weight: float = 1.0         # m of travel a metre of frontier is worth
     blacklist_radius: float = 0.5    # m, given-up frontier cells cover later frontier cells this close
-    blacklist_share: float = 0.5     # a frontier with this share of its cells covered is given up
+    blacklist_share: float = 0.5     # [fraction] a frontier with this share (0..1] of its cells covered is given up
     min_pocket_area: float = 2.0     # m^2, enclosed unknown regions smaller than this are not explored ...
-    pocket_min_occupied: float = 0.1  # ... when at least this share of their border is occupied (a table top, a
-                                      # shadow behind a chair); a pocket of open floor (free border) is explored
+    pocket_min_occupied: float = 0.1  # [fraction] ... when at least this share (0..1) of their border is occupied
+                                      # (a table top, a shadow behind a chair); a pocket of open floor (free
+                                      # border) is explored
     view_distance: float = 1.0       # m, preferred goal distance from the frontier, with line of sight (0: nearest
                                      # to the frontier's centroid); the depth camera sees nothing nearer than ~0.45 m
     camera_fov: float = 1.01         # rad, the depth camera's horizontal field of view (58 deg)
     view_clear: float = 0.6          # m, "camera not blind": known free space this far ahead of the goal heading,
                                      # all across camera_fov (range_min 0.45 m + a margin; 0: rule off)
     spin_clear: float = 0.45         # m, and known free this far out (the camera's range_min) in ...
-    spin_open_share: float = 0.5     # ... at least this share of all directions, for the look-around spin (0: off)
+    spin_open_share: float = 0.5     # [fraction] ... at least this share (0..1) of all directions, for the
+                                     # look-around spin (0: off)
 
     def __post_init__(self) -> None:
         if not 0 < self.blacklist_share <= 1:
@@ -88,8 +90,8 @@ class ExploreNodeParams:
     """The explore node's own parameters (s, rad/s)."""
 
     mode: str = "frontier"              # frontier | waypoints
-    map_frame: str = "map"
-    base_frame: str = "base_footprint"
+    map_frame: str = "map"              # frame of the goals sent to move_base and of the robot pose from tf
+    base_frame: str = "base_footprint"  # robot frame looked up in tf (map_frame -> base_frame)
     goal_timeout: float = 60.0          # s (sim) per goal
     max_duration: float = 900.0         # s (sim) for the whole run
     spin_speed: float = 0.8             # rad/s of the look-around spins (0: none)

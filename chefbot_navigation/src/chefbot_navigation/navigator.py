@@ -60,8 +60,8 @@ class NavigatorParams:
     recovery_behavior_enabled: bool = True
     path_check_distance: float = 2.5      # m of remaining path checked for new obstacles every step
     local_window: float = 3.0             # m, side of the rolling local costmap
-    back_off_distance: float = 0.15       # m
-    back_off_speed: float = 0.08          # m/s
+    back_off_distance: float = 0.15       # [m] how far the back-off recovery reverses (> 0)
+    back_off_speed: float = 0.08          # [m/s] reverse speed of the back-off recovery (> 0)
     rotate_speed: float = 1.0             # rad/s of the rotate recovery
     narrow_patience: float = 5.0          # s blocked by the static map (a passage narrower than the robot) -> abort
     replan_hysteresis: float = 0.3        # m: until the robot moved this far from where its clear path was made, a
@@ -98,12 +98,14 @@ class NodeParams:
     """move_base node-level params (s, Hz, frame names)."""
 
     controller_frequency: float = 10.0      # Hz
-    global_frame: str = "map"
-    robot_base_frame: str = "base_footprint"
+    global_frame: str = "map"               # frame of plans, costmaps and the robot pose; goals in another frame
+                                            # are transformed into it by tf
+    robot_base_frame: str = "base_footprint"  # robot frame: its pose is global_frame -> this in tf (the URDF
+                                              # footprint is taken in it)
     transform_tolerance: float = 0.5        # s, older robot pose = stale -> stop
     sensor_timeout: float = 1.0             # s without scan -> stop (0 disables the check)
     base_global_planner: str = "hierarchical"
-    base_local_planner: str = "regulated_pure_pursuit"
+    base_local_planner: str = "regulated_pure_pursuit"  # local controller; only regulated_pure_pursuit exists
     zero_quaternion_policy: str = "identity"   # all-zero (unset) quaternion: identity | ignore_yaw | reject
     global_publish_frequency: float = 1.0   # Hz, global costmap topic
     local_publish_frequency: float = 2.0    # Hz, local costmap topic

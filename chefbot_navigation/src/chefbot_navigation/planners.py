@@ -55,8 +55,8 @@ class PlannerParams:
     allow_unknown: bool = False        # plan through unknown cells (at the cost of a 252 cell)
     smooth: bool = True                # string-pull the grid path
     path_resolution: float = 0.05      # m, spacing of the published path
-    full_search_cells: int = 250_000   # hierarchical: plan exactly below this many cells
-    coarse_factor: int = 5             # hierarchical: cells per coarse cell (per axis)
+    full_search_cells: int = 250_000   # [cells] hierarchical: plan exactly below this many cells
+    coarse_factor: int = 5             # [cells] hierarchical: cells per coarse cell (per axis)
     corridor_margin: int = 3           # hierarchical: coarse cells around the coarse path
     coarse_crop: float = 0.2           # hierarchical: coarse search box margin, x start-goal distance (0 = whole map)
 

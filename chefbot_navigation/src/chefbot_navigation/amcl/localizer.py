@@ -38,8 +38,10 @@ OK, WARN, ERROR = 0, 1, 2   # diagnostic_msgs/DiagnosticStatus levels
 class AmclConfig:
     """Every parameter of the node, named as ROS's amcl (ours: marked). Units m, rad, s, Hz."""
 
-    min_particles: int = 500
-    max_particles: int = 2000
+    min_particles: int = 500            # [particles] fewest the KLD resampling keeps (a converged set shrinks to
+                                        # this); 1 <= min_particles <= max_particles
+    max_particles: int = 2000           # [particles] set size after (re)initialisation and the KLD cap; more: slower
+                                        # updates, more hypotheses kept (<= global_samples)
     kld_err: float = 0.05
     kld_z: float = 0.99
     update_min_d: float = 0.25          # m
@@ -47,41 +49,46 @@ class AmclConfig:
     resample_interval: int = 1
     recovery_alpha_slow: float = 0.01
     recovery_alpha_fast: float = 0.1
-    odom_model_type: str = "diff"
+    odom_model_type: str = "diff"       # odometry motion model: diff (differential drive, motion.py); diff-corrected
+                                        # is accepted and runs the same model
     odom_alpha1: float = 0.2
     odom_alpha2: float = 0.2
     odom_alpha3: float = 0.2
     odom_alpha4: float = 0.2
-    laser_model_type: str = "likelihood_field"
-    laser_max_beams: int = 60
+    laser_model_type: str = "likelihood_field"  # laser model; only likelihood_field is implemented
+    laser_max_beams: int = 60           # at most this many valid beams of a scan weigh the particles, evenly spaced
+                                        # (>= 2); more: slower updates
     laser_min_range: float = -1.0       # m, <= 0: the scan's range_min
     laser_max_range: float = -1.0       # m, <= 0: the scan's range_max
-    laser_z_hit: float = 0.5
-    laser_z_rand: float = 0.5
-    laser_sigma_hit: float = 0.2        # m
+    laser_z_hit: float = 0.5            # weight of the hit term, a Gaussian around the nearest obstacle (>= 0)
+    laser_z_rand: float = 0.5           # weight of the random-reading term, uniform z_rand / range_max (>= 0; not
+                                        # both 0)
+    laser_sigma_hit: float = 0.2        # [m] std-dev of the hit Gaussian: how far a beam end may lie from an
+                                        # obstacle and still fit (scan noise plus map blur)
     laser_likelihood_max_dist: float = 2.0  # m
     occupied_threshold: int = 65        # ours: map values >= this are obstacles
-    laser_through_dist: float = 0.0     # ours: m; a beam whose point this far before its end lies inside an
+    laser_through_dist: float = 0.0     # [m] ours: a beam whose point this far before its end lies inside an
                                         # obstacle went through it (sensor.py); 0: off, as amcl
-    initial_pose_x: float = 0.0         # m
-    initial_pose_y: float = 0.0         # m
-    initial_pose_a: float = 0.0         # rad
-    initial_cov_xx: float = 0.25        # m²
-    initial_cov_yy: float = 0.25        # m²
-    initial_cov_aa: float = (math.pi / 12.0) ** 2  # rad²
+    initial_pose_x: float = 0.0         # [m] x of the initial pose in global_frame_id (save_pose_rate updates it)
+    initial_pose_y: float = 0.0         # [m] y of the initial pose in global_frame_id
+    initial_pose_a: float = 0.0         # [rad] yaw of the initial pose in global_frame_id
+    initial_cov_xx: float = 0.25        # [m²] variance of the initial pose's x (>= 0)
+    initial_cov_yy: float = 0.25        # [m²] variance of the initial pose's y (>= 0)
+    initial_cov_aa: float = (math.pi / 12.0) ** 2  # [rad²] variance of the initial pose's yaw (>= 0)
     transform_tolerance: float = 1.0    # s, future-dating of map->odom and max age of odometry
     save_pose_rate: float = 0.5         # Hz, last pose to the parameter server (<= 0 off)
     gui_publish_rate: float = 10.0      # Hz, particlecloud (<= 0: every update)
-    global_frame_id: str = "map"
-    odom_frame_id: str = "odom"
-    base_frame_id: str = "base_footprint"
-    tf_broadcast: bool = True
+    global_frame_id: str = "map"        # map frame: parent of the published map->odom, frame of amcl_pose and
+                                        # particlecloud; initialpose must be given in it
+    odom_frame_id: str = "odom"         # odometry frame: odom->base is read from tf, map->odom published
+    base_frame_id: str = "base_footprint"  # robot frame: child of odom->base; scans are placed relative to it
+    tf_broadcast: bool = True           # publish map->odom (false: amcl_pose only, when another node owns map->odom)
     use_map_topic: bool = False
     first_map_only: bool = False
     seed: int = 0                       # ours: random generator seed (same inputs, same run)
     global_samples: int = 50000         # ours: poses scored at the first update after global localization
     recovery_pool: int = 25             # ours: scored candidates per injected particle (1 = amcl's blind draw)
-    recovery_scans: int = 20            # ours: recent scans (odometry-aligned) the candidates are scored on
+    recovery_scans: int = 20            # [scans] ours: recent scans (odometry-aligned) the candidates are scored on
     recovery_beams: int = 180           # ours: at most this many of those scans' beams
     recovery_refine: int = 4            # ours: jittered copies per chosen candidate, scored again (0: none)
     estimate_switch_ratio: float = 3.0  # ours: another cluster must be this many times heavier to become the

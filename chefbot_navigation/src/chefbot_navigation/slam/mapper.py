@@ -72,25 +72,25 @@ class SlamConfig:
     linearUpdate: float = 0.1            # m driven before the next scan is processed
     angularUpdate: float = 0.15          # rad turned before the next scan is processed
     temporalUpdate: float = -1.0         # s; > 0: also process a scan after this long (-1: off)
-    xmin: float = -10.0                  # m, initial map extent (the map grows as needed)
-    ymin: float = -10.0
-    xmax: float = 10.0
-    ymax: float = 10.0
+    xmin: float = -10.0                  # [m] initial map extent, lowest x (< xmax; the map grows as needed)
+    ymin: float = -10.0                  # [m] initial map extent, lowest y (< ymax)
+    xmax: float = 10.0                   # [m] initial map extent, highest x
+    ymax: float = 10.0                   # [m] initial map extent, highest y
     sigma: float = 0.07                  # m, blur of the likelihood field
     scan_matching: bool = True           # False: raw odometry (for comparison only)
     match_xy: float = 0.25               # m, tracking search half-window
     match_yaw: float = 0.25              # rad, tracking search half-window
     match_yaw_step: float = 0.0175       # rad, coarse angle step
-    srr: float = 0.1                     # m/m, odometry translation error per metre driven
-    srt: float = 0.05                    # m/rad, translation error per radian turned
-    str: float = 0.1                     # rad/m, rotation error per metre driven
-    stt: float = 0.3                     # rad/rad, rotation error per radian turned (wheel slip)
+    srr: float = 0.1                     # [m/m] odometry translation error per metre driven (>= 0)
+    srt: float = 0.05                    # [m/rad] translation error per radian turned (>= 0)
+    str: float = 0.1                     # [rad/m] rotation error per metre driven (>= 0)
+    stt: float = 0.3                     # [rad/rad] rotation error per radian turned (wheel slip; >= 0)
     turn_calibration: bool = True        # learn the odometry's turn scale from matched spins (wheel slip)
     turn_calibration_min: float = 6.0    # rad of matched in-place turning before the learned scale is used
-    turn_scale_limit: float = 0.15       # the learned scale stays within 1 +- this
+    turn_scale_limit: float = 0.15       # [fraction] the learned scale stays within 1 +- this (> 0)
     beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
-    sigma_yaw_min: float = 0.02          # rad
+    sigma_yaw_min: float = 0.02          # [rad] least yaw std-dev of the odometry prior (> 0)
     max_xy: float = 1.0                  # m, largest search half-window after blind motion
     recovery_min_beams: int = 80         # obstacle returns needed for a widened search (few beams match anywhere)
     recovery_accept: float = 0.85        # mean likelihood a widened-search pose needs to be taken
@@ -98,7 +98,8 @@ class SlamConfig:
     min_match_beams: int = 10            # fewer obstacle beams: keep the prediction
     local_keyframes: int = 30            # keyframes of the tracking map
     local_radius: float = 4.0            # m; older keyframes this close also join the tracking map (0: off)
-    loop_closure: bool = True
+    loop_closure: bool = True            # search old keyframes for loop closures every loop_every keyframes (False:
+    #                                      tracking only, the map drifts)
     loop_search_radius: float = 2.5      # m, candidate keyframes within this distance
     loop_min_travel: float = 5.0         # m driven since the candidate
     loop_xy: float = 0.3                 # m, loop search half-window
@@ -114,16 +115,16 @@ class SlamConfig:
     #                                      (true closures seen: 0.92-0.99, one under 1 m drift 0.81; a false one 0.75)
     loop_confirm_window: int = 30        # keyframes within which the second match must come
     loop_confirm_xy: float = 0.1         # m, largest disagreement of the two corrections
-    loop_confirm_yaw: float = 0.035      # rad
+    loop_confirm_yaw: float = 0.035      # [rad] largest yaw disagreement of the two corrections (> 0)
     edge_sigma_xy: float = 0.02          # m, std-dev of a matched keyframe-to-keyframe edge
-    edge_sigma_yaw: float = 0.01         # rad
+    edge_sigma_yaw: float = 0.01         # [rad] yaw std-dev of a matched keyframe-to-keyframe edge (> 0)
     loop_sigma_xy: float = 0.05          # m, std-dev of a loop-closure edge
-    loop_sigma_yaw: float = 0.03         # rad
+    loop_sigma_yaw: float = 0.03         # [rad] yaw std-dev of a loop-closure (and refinement) edge (> 0)
     refine_passes: int = 0               # final global refinement passes (refine(); slam_offline --refine N)
     refine_min_travel: float = 3.0       # m; keyframes driven this close (before/after) are not a keyframe's reference
     refine_every: int = 2                # every n-th keyframe gets a refinement edge (the others follow by tracking)
     refine_xy: float = 0.2               # m, refinement search half-window
-    refine_yaw: float = 0.1              # rad
+    refine_yaw: float = 0.1              # [rad] refinement search half-window in yaw (> 0)
     refine_max_spread: float = 0.05      # m, an ambiguous refinement match is not used (as loop_max_spread)
     footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
     #                                      hides it; 0: off)
