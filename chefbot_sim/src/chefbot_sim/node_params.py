@@ -26,9 +26,9 @@ class SimNodeParams:
 
     robot_description: str = field(default="", repr=False)  # URDF (global param, with its <chefbot_sim> block)
     world: str = ""                   # path of a world file (YAML or SDF)
-    x: float = 0.0                    # m, start pose in the world frame
-    y: float = 0.0                    # m
-    yaw: float = 0.0                  # rad
+    x: float = 0.0                    # [m] start x of the robot in the world (finite)
+    y: float = 0.0                    # [m] start y of the robot in the world (finite)
+    yaw: float = 0.0                  # [rad] start heading in the world (0: facing +x; finite)
     real_time_factor: float = 1.0     # sim s per wall s (0 = as fast as possible)
     firmware_max_rtf: float = DEFAULT_FIRMWARE_MAX_RTF  # firmware mode's cap on the above (0 = none)
     publish_tf: bool = True           # odom -> base tf (plugin drive only)

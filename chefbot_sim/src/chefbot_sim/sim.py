@@ -54,14 +54,15 @@ class SimConfigError(ValueError):
 class SimOptions:
     """Simulator settings not in the URDF.  Rates in Hz of sim time (0 = off)."""
 
-    seed: int = 0
-    clock_rate: float = 100.0          # /clock publishing, not the physics rate
-    joint_state_rate: float = 50.0
-    ground_truth_rate: float = 50.0
-    bumper_rate: float = 20.0
-    rgb_rate: float = 10.0             # TinyRenderer, only while subscribed (chefbot_sim.camera)
-    rgb_width: int = 320
-    rgb_height: int = 240
+    seed: int = 0                      # random generator seed of the sensor, IMU-drift and wheel noise (same
+                                       # seed: the same noise)
+    clock_rate: float = 100.0          # [Hz] /clock publishing, not the physics rate (>= 0)
+    joint_state_rate: float = 50.0     # [Hz] joint_states, the wheels' angles and speeds (>= 0; 0: off)
+    ground_truth_rate: float = 50.0    # [Hz] ground_truth/odom, the true pose and twist (>= 0; 0: off)
+    bumper_rate: float = 20.0          # [Hz] bumper, std_msgs/Bool contact state (>= 0; 0: off)
+    rgb_rate: float = 10.0             # [Hz] TinyRenderer, only while subscribed (chefbot_sim.camera; 0: off)
+    rgb_width: int = 320               # [px] RGB image width (>= 1; camera_info has the matching intrinsics)
+    rgb_height: int = 240              # [px] RGB image height (>= 1)
     registered_stride: int = 2         # px step of camera/depth_registered/points over the RGB image
     depth_band_rows: int = 10          # rows around the centre cast exactly (depth_to_scan's scan_height)
     depth_fill: str = "coarse"         # rows outside the band: coarse | full | none
@@ -79,14 +80,15 @@ class SimOptions:
     imu_relative_yaw: bool = True      # IMU yaw 0 at the start pose, as the real MPU6050's DMP
     imu_gyro_bias: float = imu_model.DEFAULT_GYRO_BIAS              # rad/s, z-gyro bias at start
     imu_gyro_bias_drift: float = imu_model.DEFAULT_GYRO_BIAS_DRIFT  # rad/s/sqrt(s), bias random walk
-    # plugin mode: odometry heading from the IMU (its drifting DMP yaw) instead of the wheel difference,
-    # as Kobuki's base driver does; the firmware drive's counterpart is diff_tf's use_imu
-    odom_imu_heading: bool = False
+    odom_imu_heading: bool = False     # plugin mode: odometry heading from the IMU (its drifting DMP yaw) instead
+                                       # of the wheel difference, as Kobuki's base driver does; the firmware
+                                       # drive's counterpart is diff_tf's use_imu
     # wheel odometry errors (chefbot_sim.wheel_noise; 0 = perfect odometry); ground truth unaffected
     wheel_radius_error_left: float = 0.0   # fraction: real rolling radius / nominal - 1
     wheel_radius_error_right: float = 0.0  # fraction
     wheel_slip_stddev: float = 0.0         # m per sqrt(m) of wheel travel
-    wheel_encoder_counts: int = 0          # plugin mode: counts/rev the odometry is quantised to (0 = none)
+    wheel_encoder_counts: int = 0          # [counts/rev] plugin mode: encoder counts per wheel turn the odometry
+                                           # is quantised to (0 = none)
     time_step: float = 1.0 / 240.0
 
     def battery_config(self) -> battery.BatteryConfig:
