@@ -50,9 +50,9 @@ class CaptureParams:
     """``cam`` settings: source, requested size (px, 0 = the device's), frame rate (Hz), loop a file."""
 
     device: str = "0"
-    width: int = 640
-    height: int = 480
-    rate: float = 30.0
+    width: int = 640        # [px] frame width asked of a device, frames resized to it (0 = as given; >= 0)
+    height: int = 480       # [px] frame height, as width (0 = as given; >= 0)
+    rate: float = 30.0      # [Hz] frames published per second; a video file is played at this rate (> 0)
     loop: bool = True
 
     def __post_init__(self) -> None:

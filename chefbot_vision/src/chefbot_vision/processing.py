@@ -23,8 +23,8 @@ class EdgeParams:
     """Edge detection: blur kernel side (px, odd) and the Canny hysteresis thresholds (grey levels)."""
 
     blur_size: int = 7
-    canny_low: float = 15.0
-    canny_high: float = 30.0
+    canny_low: float = 15.0      # [grey levels] Canny hysteresis low threshold (book: 15; 0 <= low <= high)
+    canny_high: float = 30.0     # [grey levels] Canny hysteresis high threshold (book: 30)
 
     def __post_init__(self) -> None:
         if self.blur_size < 1 or self.blur_size % 2 == 0:
