@@ -2,6 +2,8 @@
 
 * ``test_readme_tables_are_current``: the generator's ``--check`` over the real tree; fails with the
   diff when a table is stale, a node has no markers, or markers name no node.
+* ``test_every_table_row_has_a_meaning``: no row of the real tree has an empty Meaning (or only the
+  generator's "code default X" note); fails naming node and parameter.
 * The generator on a small fake package: a new field, a changed default, a missing README marker
   and markers for no node are all reported; yaml defaults win and name the code default.
 * That the documented list IS what the node reads holds by construction: a node reads parameters
@@ -16,6 +18,7 @@ from __future__ import annotations
 import ast
 import importlib.util
 import io
+import re
 import sys
 import textwrap
 from pathlib import Path
@@ -42,6 +45,25 @@ def test_readme_tables_are_current() -> None:
     problems = gen.run(check=True, out=out)
     assert not problems, ("README parameter tables disagree with the nodes; run "
                           "`bash tools/with_env.sh python tools/gen_node_docs.py`:\n" + out.getvalue())
+
+
+# what the generator appends when the shipped yaml overrides the code default: no meaning by itself
+_CODE_DEFAULT_NOTE = re.compile(r"(?:^|;\s*)code default `[^`]*`(?: \(see `[^`]*`\))?$")
+
+
+def test_every_table_row_has_a_meaning() -> None:
+    # a field without a trailing comment (nor a yaml comment, nor a class-docstring entry) gives an empty
+    # Meaning; "code default X" alone (the yaml overrides a field with a unit-only comment) is no meaning either
+    empty = []
+    for pkg, node in gen.all_nodes():
+        sources = gen.yaml_sources(pkg, node)
+        for spec in gen.node_specs(ROOT / pkg / "nodes" / node):
+            for row in gen.spec_rows(spec, sources):
+                if not _CODE_DEFAULT_NOTE.sub("", row.meaning).strip(" ;"):
+                    empty.append(f"{pkg}/{node}: {row.name} ({spec.cls.__name__})")
+    assert not empty, ("parameters without a meaning in their README table; add a comment on the dataclass field "
+                       "(`name: float = 0.25   # [m] what it does`, see tools/gen_node_docs.py):\n  "
+                       + "\n  ".join(empty))
 
 
 def test_every_node_declares_params() -> None:
