@@ -1,6 +1,6 @@
 """The simulated RGB-D camera's rendered images and point clouds (no pybullet import, no rospy).
 
-Costs decide the split (measured, see the package README "RGB-D camera"):
+Costs decide the split (measured; figures in docs/benchmarks.md, sim rows):
 
 * RGB: TinyRenderer through the facade (:meth:`chefbot_sim.bullet.BulletSim.render`)
   at ``rgb_width`` x ``rgb_height`` (320 x 240), only while someone subscribes;

@@ -12,7 +12,7 @@ from typing import Any
 from chefbot_common.params import ParamError, private_spec
 from chefbot_sim.sim import SimOptions
 
-DEFAULT_FIRMWARE_MAX_RTF = 0.0   # no cap; see README "Real-time factor in firmware mode"
+DEFAULT_FIRMWARE_MAX_RTF = 0.0   # no cap; see the package README, "Firmware in the loop"
 STEPS_PER_BATCH = 12  # physics steps between checks of requests/pacing (0.05 s of sim time)
 # Firmware mode paces every physics step (4.2 ms) and never catches up in a burst:
 # launchpad_node checks encoder lines for impossible jumps against WALL time.
