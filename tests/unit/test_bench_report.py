@@ -1,7 +1,6 @@
 """tools/bench_report.py: docs/benchmarks.md rendered from fixed rows (pure, no benchmark runs)."""
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -12,15 +11,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(f"chefbot_tools_{name}", ROOT / "tools" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-report = _load("bench_report")
+sys.path.insert(0, str(ROOT / "tools"))
+import bench_report as report  # noqa: E402  (tools/ is no package)
 
 ROWS = [
     {"bench": "serial parser", "case": "parse_line on firmware lines", "metric": "lines/s", "ours": 123456.78,
