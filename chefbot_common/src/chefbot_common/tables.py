@@ -54,8 +54,7 @@ def load_map_in_world(path: str | Path) -> Pose2D:
     compares ground truth through it.  Written by ``align_tables``; identity when
     absent.  Product nodes do not read it.  Raises :class:`TablesError`.
     """
-    load_tables(path)  # validates the whole file
-    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    data, _ = _read(Path(path))   # validates the whole file
     return _pose(data["map_in_world"], f"{path}: map_in_world") if "map_in_world" in data else Pose2D()
 
 
@@ -91,7 +90,11 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
     ``map_in_world: {x, y, yaw}`` is test-oracle data (see :func:`load_map_in_world`).
     Raises :class:`TablesError` naming the file and the entry.
     """
-    path = Path(path)
+    return _read(Path(path))[1]
+
+
+def _read(path: Path) -> tuple[dict, dict[str, Pose2D]]:
+    """The parsed YAML of a tables file and its poses, the whole file validated (:func:`load_tables`)."""
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as e:
@@ -115,7 +118,7 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
         raise TablesError(f"{path}: missing the 'home' pose")
     if "destinations" in data:
         _destinations(data, out, path)   # a file with only 'home' is fine here, not to deliver to
-    return out
+    return data, out
 
 
 def _destinations(data: dict, poses: dict[str, Pose2D], path: Path) -> list[str]:
@@ -143,6 +146,5 @@ def _destinations(data: dict, poses: dict[str, Pose2D], path: Path) -> list[str]
 def load_destinations(path: str | Path) -> list[str]:
     """The destinations of a tables file in file order: its ``destinations`` list, else every pose
     but ``home``.  Raises :class:`TablesError` naming the file (zero destinations is an error)."""
-    poses = load_tables(path)
-    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    data, poses = _read(Path(path))
     return _destinations(data, poses, Path(path))
