@@ -59,7 +59,7 @@ from typing import Any
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("chefbot_bringup", "chefbot_gui", "chefbot_navigation", "chefbot_sim", "chefbot_vision")
+PACKAGES = tuple(sorted(d.parent.name for d in ROOT.glob("*/nodes") if d.is_dir()))   # packages with nodes
 BEGIN_RE = re.compile(r"^<!-- BEGIN generated params (\S+?)/(\S+) -->\s*$")
 END = "<!-- END generated params -->"
 HEADER = "| Parameter | Type | Default | Unit | Meaning |\n|---|---|---|---|---|"

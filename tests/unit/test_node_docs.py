@@ -28,15 +28,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load_gen():
-    spec = importlib.util.spec_from_file_location("chefbot_tools_gen_node_docs", ROOT / "tools" / "gen_node_docs.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-gen = _load_gen()
+sys.path.insert(0, str(ROOT / "tools"))
+import gen_node_docs as gen  # noqa: E402  (tools/ is no package)
 
 
 # ---------------------------------------------------------------- the real tree
