@@ -77,6 +77,16 @@ def _memory(meta: dict) -> str:
     return f"{b / 2**30:.1f} GiB memory" if isinstance(b, (int, float)) else "memory unknown"
 
 
+def _load(meta: dict) -> str:
+    """The machine's 1-min load average at the run's start and end: figures under load are slower."""
+    start, end = meta.get("load_start"), meta.get("load_end")
+    if start is None and end is None:
+        return "unknown"
+    def one(x: object) -> str:
+        return fmt_value(x) if x is not None else "?"
+    return f"{one(start)} at the start, {one(end)} at the end"
+
+
 # ----------------------------------------------------------------- report
 def render_report(rows: list[dict], meta: dict) -> str:
     """The Markdown page: a header with the run's facts, then one section per bench
@@ -184,16 +194,6 @@ def _os_name() -> str:
     except OSError:
         pass
     return platform.system()
-
-
-def _load(meta: dict) -> str:
-    """The machine's 1-min load average at the run's start and end: figures under load are slower."""
-    start, end = meta.get("load_start"), meta.get("load_end")
-    if start is None and end is None:
-        return "unknown"
-    def one(x: object) -> str:
-        return fmt_value(x) if x is not None else "?"
-    return f"{one(start)} at the start, {one(end)} at the end"
 
 
 def collect_meta() -> dict:
