@@ -20,7 +20,7 @@ from nav_msgs.msg import OccupancyGrid
 from nav_msgs.srv import GetMap
 
 from chefbot_common.geometry import Pose2D
-from chefbot_common.params import ParamError, ParamSpec, private_spec
+from chefbot_common.params import ParamError, ParamSpec
 from chefbot_navigation.health import TaskHealth
 from chefbot_navigation.navigator import link_fault, pose_age_fault, stalest_link
 from chefbot_navigation.ros_io import transform_to_pose2d
@@ -116,11 +116,9 @@ def lookup_transform_wall(buffer: tf2_ros.Buffer, target: str, source: str, stam
     return buffer.lookup_transform(target, source, stamp)
 
 
-def read_private_config(spec: ParamSpec | type, who: str) -> Any | None:
-    """The config dataclass of ``spec`` (a class: its fields as private params) read from the parameter
-    server; None after logging the ParamError (and printing it to stderr, which roslaunch shows)."""
-    if not isinstance(spec, ParamSpec):
-        spec = private_spec(spec)
+def read_private_config(spec: ParamSpec, who: str) -> Any | None:
+    """The config dataclass of ``spec`` (one of the node's ``PARAMS``) read from the parameter server;
+    None after logging the ParamError (and printing it to stderr, which roslaunch shows)."""
     try:
         return spec.read(rospy.get_param)
     except ParamError as exc:
