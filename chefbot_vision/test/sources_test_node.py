@@ -44,17 +44,17 @@ class SourcesTest(unittest.TestCase):
         self.assertGreater(frame[..., 2].max(), 150)      # the red dot of the clip
 
     def test_missing_sources_are_named(self) -> None:
-        for node, param, text in (("cam", "_device:=/nonexistent/chefbot_clip.avi",
-                                   "no such video file: /nonexistent/chefbot_clip.avi"),
-                                  ("cam", "_device:=57", "camera 57 does not exist"),
-                                  ("image_read", "_image:=/nonexistent/chefbot.png",
-                                   "no such file: /nonexistent/chefbot.png"),
-                                  ("image_read", f"_save_as:={os.devnull}/chefbot/copy.png",
-                                   f"cannot create the directory {os.devnull}/chefbot for ~save_as")):
-            extra = [f"_image:={rospy.get_param('/image_read/image')}"] if "save_as" in param else []
-            out = subprocess.run(["rosrun", PKG, node, f"__name:={node}_missing", param, *extra], capture_output=True,
+        image = rospy.get_param("/image_read/image")   # a good image, so that only the save directory is bad
+        for node, params, text in (("cam", ["_device:=/nonexistent/chefbot_clip.avi"],
+                                    "no such video file: /nonexistent/chefbot_clip.avi"),
+                                   ("cam", ["_device:=57"], "camera 57 does not exist"),
+                                   ("image_read", ["_image:=/nonexistent/chefbot.png"],
+                                    "no such file: /nonexistent/chefbot.png"),
+                                   ("image_read", [f"_image:={image}", f"_save_as:={os.devnull}/chefbot/copy.png"],
+                                    f"cannot create the directory {os.devnull}/chefbot for ~save_as")):
+            out = subprocess.run(["rosrun", PKG, node, f"__name:={node}_missing", *params], capture_output=True,
                                  text=True, timeout=WALL)
-            self.assertEqual(out.returncode, 1, f"{node} {param}: exit {out.returncode}, {out.stderr[-300:]}")
+            self.assertEqual(out.returncode, 1, f"{node} {params}: exit {out.returncode}, {out.stderr[-300:]}")
             self.assertIn(text, out.stderr)
 
 
