@@ -13,16 +13,29 @@ Noise switch: ``noise=True`` multiplies the recorded odometry's error with an
 extra wheel model (OdometryNoise: 2 % scale bias, 5 % rotation bias, random
 per-scan errors, 0.02 rad/m heading drift) - the bench reports both, the noise with three seeds.
 
+Hard-case variants (issue 30): the same bag with its scans thinned to one per
+0.7 m / 25 deg and one per 1.1 m / 35 deg of recorded odometry (``Decimate``),
+each with the recorded odometry, with a miscalibrated one (3 % distance, 2 %
+turn, 1.5 deg/m heading drift: ``OdometryNoise.miscalibrated()``) and with that
+plus random noise (seeds 1-5); ATE RMS and max per variant, next to the same run
+with ``SlamConfig(odometry_calibration=False)`` as the reference (while that
+option does not exist, the reference is the same run).  ``--quick`` keeps the
+dense recorded one and one thinned miscalibrated one.
+
     python chefbot_navigation/bench/bench_slam.py [--quick] [--bag BAG]
 
 Goals (issue): matched >= 95 %, false-occupied <= 2 %, ATE <= 0.05 m RMS,
-offline >= 5x real time.  References: ATE of GMapping 0.07 m and graph SLAM
-0.03 m on the Intel Research Lab data (Kuemmerle et al. 2009).
+offline >= 5x real time; on every hard-case variant ATE <= 0.10 m RMS and
+<= 0.30 m max.  References: ATE of GMapping 0.07 m and graph SLAM 0.03 m on the
+Intel Research Lab data (Kuemmerle et al. 2009).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +47,16 @@ from chefbot_common.map_io import load_map  # noqa: E402
 from chefbot_navigation.ros_slam_bag import run_bag  # noqa: E402
 from chefbot_navigation.slam.mapper import SlamConfig  # noqa: E402
 from chefbot_navigation.slam.metrics import ate_rms, map_quality  # noqa: E402
-from chefbot_navigation.slam.synthetic import OdometryNoise  # noqa: E402
+from chefbot_navigation.slam.synthetic import Decimate, OdometryNoise  # noqa: E402
 
 BAG = ROOT / "chefbot_navigation" / "test" / "fixtures" / "hotel_route.bag"
 TRUTH_MAP = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
+
+# hard-case variants (issue 30): (name, (min m, min deg) between kept scans or None: every scan)
+DECIMATIONS = (("dense", None), ("one scan per 0.7 m / 25 deg", (0.7, 25.0)),
+               ("one scan per 1.1 m / 35 deg", (1.1, 35.0)))
+NOISE_SEEDS = (1, 2, 3, 4, 5)
+VARIANT_ATE, VARIANT_ATE_MAX = 0.10, 0.30      # m, the issue's goals on every variant
 
 
 def ground_truth(bag_path: Path) -> np.ndarray:
@@ -48,18 +67,92 @@ def ground_truth(bag_path: Path) -> np.ndarray:
                          for _, m, _ in bag.read_messages(topics=["/ground_truth/odom"])])
 
 
-def evaluate(bag_path: Path, cfg: SlamConfig, noise: bool, seed: int = 1) -> dict:
-    """Run the offline SLAM on the bag; speed, map quality, ATE."""
-    res = run_bag(bag_path, cfg, odom_filter=OdometryNoise(seed=seed) if noise else None)
+def ate_max(est: np.ndarray, truth: np.ndarray) -> float:
+    """Largest position error (m) after the best rigid 2-D alignment (the one of ``metrics.ate_rms``)."""
+    me, mt = est.mean(axis=0), truth.mean(axis=0)
+    u, _, vt = np.linalg.svd((est - me).T @ (truth - mt))
+    rot = vt.T @ np.diag([1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
+    return float(np.hypot(*((rot @ (est - me).T).T + mt - truth).T).max())
+
+
+def trajectory_error(bag_path: Path, cfg: SlamConfig, odom_filter: Callable | None = None,
+                     scan_filter: Callable | None = None) -> dict:
+    """Run the offline SLAM on the bag (``run_bag``'s filters); ATE RMS and max (m) over the scans given."""
+    res = run_bag(bag_path, cfg, odom_filter=odom_filter, scan_filter=scan_filter)
     slam = res.front.slam
     gt = ground_truth(bag_path)
     traj = slam.trajectory()
     t = np.array([s for s, _ in traj])
     est = np.array([(p.x, p.y) for _, p in traj])
     truth = np.column_stack((np.interp(t, gt[:, 0], gt[:, 1]), np.interp(t, gt[:, 0], gt[:, 2])))
+    return {"result": res, "slam": slam, "ate": ate_rms(est, truth), "ate_max": ate_max(est, truth),
+            "scans": res.scans, "decimated": res.decimated}
+
+
+def evaluate(bag_path: Path, cfg: SlamConfig, noise: bool, seed: int = 1) -> dict:
+    """Run the offline SLAM on the bag; speed, map quality, ATE."""
+    te = trajectory_error(bag_path, cfg, odom_filter=OdometryNoise(seed=seed) if noise else None)
+    slam = te["slam"]
     q = map_quality(slam.occupancy(), load_map(TRUTH_MAP))
-    return {"speedup": res.speedup, "matched": 100 * q.matched, "false": 100 * q.false_occupied,
-            "coverage": 100 * q.coverage, "ate": ate_rms(est, truth), "loops": slam.stats.loop_closures}
+    return {"speedup": te["result"].speedup, "matched": 100 * q.matched, "false": 100 * q.false_occupied,
+            "coverage": 100 * q.coverage, "ate": te["ate"], "ate_max": te["ate_max"],
+            "loops": slam.stats.loop_closures, "stats": slam.stats, "scans": te["scans"]}
+
+
+def calibration_off() -> SlamConfig | None:
+    """The "before" configuration of the variants: the odometry calibration off (None while SlamConfig has no
+    ``odometry_calibration``: then today's code is already the before)."""
+    if "odometry_calibration" not in {f.name for f in dataclasses.fields(SlamConfig)}:
+        return None
+    return SlamConfig(odometry_calibration=False)
+
+
+def learned_bias(stats) -> str:
+    """The odometry bias the SLAM learned (the fields it has; 1 / 0: nothing learned)."""
+    drift = getattr(stats, "drift_per_m", None)
+    return (f"distance x{getattr(stats, 'distance_scale', 1.0):.4f}, turn x{getattr(stats, 'turn_scale', 1.0):.4f}"
+            + (f", drift {math.degrees(drift):+.2f} deg/m" if drift is not None else ", drift not learned"))
+
+
+def variants(quick: bool) -> list[tuple[str, tuple[float, float] | None, str, int | None]]:
+    """(decimation name, (m, deg) or None, odometry name, noise: None recorded / 0 miscalibrated / seed k)."""
+    if quick:
+        return [("dense", None, "recorded odometry", None),
+                (*DECIMATIONS[1], "miscalibrated odometry", 0)]
+    odometries = [("recorded odometry", None), ("miscalibrated odometry", 0)]
+    odometries += [(f"miscalibrated odometry + noise seed {k}", k) for k in NOISE_SEEDS]
+    return [(dn, dec, on, noise) for dn, dec in DECIMATIONS for on, noise in odometries]
+
+
+def _filters(dec: tuple[float, float] | None, noise: int | None) -> dict:
+    """Fresh (stateful) ``run_bag`` filters of a variant (see :func:`variants`)."""
+    return {"odom_filter": None if noise is None else OdometryNoise.miscalibrated(seed=noise or None),
+            "scan_filter": None if dec is None else Decimate(dec[0], math.radians(dec[1]))}
+
+
+def variant_rows(bag: Path, quick: bool, dense_recorded: dict | None = None) -> list[dict]:
+    """ATE RMS / max of each hard-case variant, the run without odometry calibration as the reference.
+    ``dense_recorded``: the main rows' run of today's configuration on the recorded odometry, reused."""
+    rows: list[dict] = []
+    before_cfg = calibration_off()
+    ref_name = "without odometry calibration" if before_cfg is not None else \
+        "without odometry calibration (no such option yet: the same run)"
+    for dec_name, dec, odo_name, noise in variants(quick):
+        if dec is None and noise is None and dense_recorded is not None:
+            ours = dense_recorded
+        else:
+            ours = trajectory_error(bag, SlamConfig(), **_filters(dec, noise))
+            ours["stats"] = ours["slam"].stats
+        before = ours if before_cfg is None else trajectory_error(bag, before_cfg, **_filters(dec, noise))
+        case = f"hotel route variant: {dec_name}, {odo_name}"
+        rows.append(_row(case, "ATE RMS (m)", ours["ate"], f"<= {VARIANT_ATE:.2f}", ours["ate"] <= VARIANT_ATE,
+                         round(float(before["ate"]), 4), ref_name))
+        rows.append(_row(case, "ATE max (m)", ours["ate_max"], f"<= {VARIANT_ATE_MAX:.2f}",
+                         ours["ate_max"] <= VARIANT_ATE_MAX, round(float(before["ate_max"]), 4), ref_name))
+        if noise is None:
+            rows.append(_row(case, "scans used", ours["scans"], None, None))
+        print(f"{case}: learned odometry {learned_bias(ours['stats'])}", file=sys.stderr)
+    return rows
 
 
 def _row(case: str, metric: str, ours: float, goal: str | None, met: bool | None, reference: float | None = None,
@@ -73,11 +166,14 @@ def run(quick: bool = False, bag: Path = BAG) -> list[dict]:
     rows: list[dict] = []
     # the extra noise is random: three seeds (one can be lucky or unlucky: seed 1 of the 2026-11-24
     # bench was the best of the three with turn calibration off and the worst with it on)
-    variants = [("recorded odometry", False, 1)]
+    cases = [("recorded odometry", False, 1)]
     if not quick:
-        variants += [(f"extra wheel noise seed {seed}", True, seed) for seed in (1, 2, 3)]
-    for name, noise, seed in variants:
+        cases += [(f"extra wheel noise seed {seed}", True, seed) for seed in (1, 2, 3)]
+    dense_recorded = None
+    for name, noise, seed in cases:
         sm = evaluate(bag, SlamConfig(), noise, seed)
+        if not noise:
+            dense_recorded = sm
         case = f"hotel route 325 s, {name}"
         rows.append(_row(case, "offline speed (x real time)", sm["speedup"], ">= 5", sm["speedup"] >= 5))
         rows.append(_row(case, "GT occupied matched within 1 cell (%)", sm["matched"], ">= 95", sm["matched"] >= 95))
@@ -99,6 +195,7 @@ def run(quick: bool = False, bag: Path = BAG) -> list[dict]:
             rows.append(_row(case_nl, "GT occupied matched within 1 cell (%)", nl["matched"], None, None))
             rows.append(_row(case_nl, "false occupied (%)", nl["false"], None, None))
             rows.append(_row(case_nl, "ATE RMS (m)", nl["ate"], None, None))
+    rows += variant_rows(bag, quick, dense_recorded)
     return rows
 
 

@@ -30,7 +30,8 @@ class BagError(RuntimeError):
 
 @dataclass
 class OfflineResult:
-    """The front end (map + trajectory inside), how many scans were used / skipped, and timing."""
+    """The front end (map + trajectory inside), how many scans were used / skipped (an error) /
+    left out by ``scan_filter`` (``decimated``), and timing."""
 
     front: SlamFrontend
     scans: int
@@ -38,6 +39,7 @@ class OfflineResult:
     bag_seconds: float
     wall_seconds: float
     first_error: str = ""
+    decimated: int = 0
 
     @property
     def speedup(self) -> float:
@@ -62,11 +64,22 @@ def progress_bar(done: int, total: int, t0: float, bag_t: float, width: int = 30
 
 def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", base_frame: str = "base_footprint",
             odom_frame: str = "odom", progress: Callable[[int, int, float, float], None] | None = None,
-            odom_filter: Callable[[float, Pose2D], Pose2D] | None = None) -> OfflineResult:
+            odom_filter: Callable[[float, Pose2D], Pose2D] | None = None,
+            scan_filter: Callable[[float, Pose2D], bool] | None = None) -> OfflineResult:
     """Map a bag; raises :class:`BagError` for a missing/unreadable bag or one without the scan topic.
 
-    ``odom_filter(t, pose)`` (tests / benchmark only) may replace each odometry
-    pose, e.g. to inject wheel noise into a bag recorded with perfect odometry.
+    Tests / benchmark only:
+
+    * ``odom_filter(t, pose)`` may replace each odometry pose, e.g. to inject
+      wheel noise into a bag recorded with perfect odometry.  It is called once
+      per scan given to the SLAM, in stamp order (never for a scan that
+      ``scan_filter`` rejected), so a stateful filter sees one stream.
+    * ``scan_filter(t, pose)`` is asked first for each scan with the *recorded*
+      odometry pose (before ``odom_filter``: in the simulator's bags that is
+      nearly the true motion, so a decimation by distance keeps the same scans
+      whatever error ``odom_filter`` adds); a scan it rejects is left out
+      entirely (``OfflineResult.decimated``, not ``scans`` nor ``skipped``).  A
+      scan whose odometry cannot be looked up goes on to fail as usual.
     """
     path = Path(bag_path)
     if not path.is_file():
@@ -102,28 +115,44 @@ def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", bas
             return core.lookup_transform_core(target, source, stamp)
 
         front = SlamFrontend(cfg, lookup, base_frame, odom_frame)
+        raw = front.odom_pose
         if odom_filter is not None:
-            raw = front.odom_pose
             front.odom_pose = lambda stamp: odom_filter(stamp.to_sec(), raw(stamp))  # type: ignore[method-assign]
         t0 = time.monotonic()
-        done = skipped = 0
+        done = skipped = decimated = 0
         first_error = ""
         first_t = last_t = None
         for _, msg, _ in bag.read_messages(topics=[scan_t]):
             st = msg.header.stamp.to_sec()
             first_t = st if first_t is None else first_t
             last_t = st
-            try:
-                front.process(msg)
-            except SlamInputError as exc:
-                skipped += 1
-                first_error = first_error or str(exc)
-            done += 1
-            if progress is not None and (done % 50 == 0 or done == total):
-                progress(done, total, t0, st - first_t)
+            if scan_filter is not None and not _keep(scan_filter, st, raw, msg.header.stamp):
+                decimated += 1
+            else:
+                try:
+                    front.process(msg)
+                except SlamInputError as exc:
+                    skipped += 1
+                    first_error = first_error or str(exc)
+                done += 1
+            seen = done + decimated
+            if progress is not None and (seen % 50 == 0 or seen == total):
+                progress(seen, total, t0, st - first_t)
         if done > skipped:
             front.slam.refine()     # cfg.refine_passes final passes (0: none)
         wall = time.monotonic() - t0
     if done == skipped:
         raise BagError(f"{path}: no usable scan on '{scan_t}' ({skipped} skipped; first error: {first_error})")
-    return OfflineResult(front, done - skipped, skipped, (last_t or 0.0) - (first_t or 0.0), wall, first_error)
+    return OfflineResult(front, done - skipped, skipped, (last_t or 0.0) - (first_t or 0.0), wall, first_error,
+                         decimated)
+
+
+def _keep(scan_filter: Callable[[float, Pose2D], bool], t: float, odom_pose: Callable[[object], Pose2D],
+          stamp) -> bool:
+    """``scan_filter``'s verdict on the scan at ``t`` given the recorded odometry; a scan without odometry is
+    kept (the front end then reports it as skipped, with the reason)."""
+    try:
+        pose = odom_pose(stamp)
+    except SlamInputError:
+        return True
+    return bool(scan_filter(t, pose))
