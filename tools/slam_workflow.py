@@ -44,7 +44,7 @@ from std_msgs.msg import Bool
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_common.grid import OccupancyMap
 from chefbot_common.map_io import load_map
-from chefbot_navigation.slam.mapper import EVENT_CLOSURE, EVENT_CORRECTION, EVENT_DROPPED
+from chefbot_navigation.slam.mapper import EVENT_CLOSURE, EVENT_CORRECTION, EVENT_DROPPED, EVENT_OUTLIER
 from chefbot_navigation.slam.metrics import ate_rms
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -208,6 +208,7 @@ def slam_events_summary(lines: list[str]) -> str:
     if len(closures) < len(found):
         parts.append(f"{len(found) - len(closures)} closure line(s) not understood: {found[0][:160]}")
     for what, key in (("loop match(es) dropped", EVENT_DROPPED), ("large correction(s)", EVENT_CORRECTION),
+                      ("loop edge(s) down-weighted", EVENT_OUTLIER),
                       ("scan-loss warning(s)", "falling behind")):
         n = sum(key in ln for ln in lines)
         if n:

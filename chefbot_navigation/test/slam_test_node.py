@@ -11,6 +11,7 @@ import rosbag
 import rospy
 import rostest
 import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
 from rosgraph_msgs.msg import Log
@@ -32,11 +33,21 @@ class SlamNodeTest(unittest.TestCase):
         cls.maps: list[OccupancyGrid] = []
         rospy.Subscriber("map", OccupancyGrid, lambda m: cls.maps.append(m), queue_size=2)
         cls.bad_scan = rospy.Publisher("bad/scan", LaserScan, queue_size=5)
+        cls.diag: dict[str, dict] = {}      # latest status of /slam, by name: {"message": ..., key: value}
+        rospy.Subscriber("/diagnostics", DiagnosticArray, cls._on_diag, queue_size=20)
 
     @classmethod
     def _on_log(cls, msg: Log) -> None:
         with cls.lock:
             cls.logs.append(msg.msg)
+
+    @classmethod
+    def _on_diag(cls, msg: DiagnosticArray) -> None:
+        with cls.lock:
+            for st in msg.status:
+                if st.hardware_id == "/slam":
+                    cls.diag[st.name] = {"message": st.message, "level": st.level,
+                                         **{kv.key: kv.value for kv in st.values}}
 
     def wait(self, cond, timeout: float) -> bool:
         end = time.monotonic() + timeout
@@ -70,6 +81,15 @@ class SlamNodeTest(unittest.TestCase):
         self.assertEqual(t.child_frame_id, "odom")
         # the robot is localized in its own map: map -> base_footprint exists
         self.buffer.lookup_transform("map", "base_footprint", rospy.Time(0), rospy.Duration(5.0))
+        # /diagnostics: tracking, and the odometry bias learned from the bag (its wheels count ~3 % too much
+        # turn in spins: the simulated wheels slip)
+        self.assertTrue(self.wait(lambda: "slam: odometry bias" in self.diag and "slam: tracking" in self.diag, 30),
+                        f"no slam diagnostics: {sorted(self.diag)}")
+        with self.lock:
+            bias, tracking = dict(self.diag["slam: odometry bias"]), dict(self.diag["slam: tracking"])
+        self.assertLess(abs(float(bias["turn_scale"]) - 0.97), 0.02, bias)
+        self.assertIn("turn scale", bias["message"])
+        self.assertGreater(int(tracking["matched"]), 0.9 * int(tracking["keyframes"]), tracking)
 
     def test_2_bad_inputs_are_reported(self):
         # bad/slam (odom_frame no_such_odom, scans on bad/scan): each bad scan gets a message naming the problem

@@ -8,7 +8,7 @@ import pytest
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.slam.mapper import Slam, SlamConfig
-from chefbot_navigation.slam.odometry_bias import BiasEstimate, BiasLimits, OdometryBias, describe
+from chefbot_navigation.slam.odometry_bias import BiasEstimate, BiasLimits, OdometryBias, describe, status
 from chefbot_navigation.slam.scan import scan_from_ranges
 from chefbot_navigation.slam.synthetic import box_segments, cast
 
@@ -81,12 +81,16 @@ def _clipped_low() -> float:
     return bias.est.distance_scale
 
 
-def test_switched_off_learns_nothing():
+def test_switched_off_it_reports_but_does_not_correct():
     bias = OdometryBias(BiasLimits(odometry_calibration=False, turn_calibration=False))
     _feed(bias, 60)
     for _ in range(60):
         bias.observe(Pose2D(0.0, 0.0, 0.2 * TURN), Pose2D(0.0, 0.0, 0.2), 0.01)
-    assert bias.est == BiasEstimate()
+    assert bias.est.distance_scale == pytest.approx(1 / SCALE, abs=1e-6)       # learned, for the user
+    assert not bias.est.distance_applied and not bias.est.drift_applied
+    assert bias.est.turn_scale == 1.0 and bias.est.turn_seen == 0.0
+    step = Pose2D(0.1, 0.0, 0.01)
+    assert bias.correct(step).distance(step) < 1e-12 and bias.correct(step).yaw == pytest.approx(0.01, abs=1e-12)
 
 
 def test_turn_scale_is_learned_from_in_place_turns():
@@ -101,6 +105,15 @@ def test_describe_tells_the_user_in_words():
     text = describe(BiasEstimate(distance_scale=1 / 1.03, turn_scale=1 / 1.02, drift_per_m=DRIFT,
                                  distance_seen=12.0, turn_seen=7.0))
     assert "3.0 % too far" in text and "2.0 % too much turn" in text and "1.50 deg/m to the left" in text
+
+
+def test_status_warns_with_the_parameter_to_fix():
+    level, text, values = status(BiasEstimate(distance_scale=1 / 1.03, distance_seen=8.0, distance_applied=True))
+    assert level == 1 and "ticks_meter" in text and "base_width" not in text
+    assert values["distance_scale"] == "0.9709" and values["distance_applied"] == "True"
+    level, _, _ = status(BiasEstimate(turn_scale=0.97, turn_seen=10.0))     # the sim's wheels slip 3 % in spins
+    assert level == 0
+    assert status(BiasEstimate(turn_scale=0.9, turn_seen=10.0))[0] == 1
 
 
 # ---------------------------------------------------------------- the whole SLAM

@@ -472,3 +472,29 @@ def test_pose_graph_with_a_node_no_edge_reaches_keeps_it():
     g.add_edge(0, 1, Pose2D(1, 0, 0), (0.05, 0.05, 0.02))
     g.optimize()
     assert g.poses[1].distance(Pose2D(1, 0, 0)) < 1e-6 and _same_pose(g.poses[2], Pose2D(7, 7, 1))
+
+
+def test_loop_attempts_are_counted_by_distance_driven(monkeypatch):
+    # dense keyframes (0.12 m): every loop_every-th; sparse ones (0.5 m apart, a slow scan rate): every one
+    def attempts(step: float) -> int:
+        calls = []
+        monkeypatch.setattr(Slam, "_close_loop", lambda self: calls.append(len(self.keyframes)))
+        slam = Slam(SlamConfig(scan_matching=False, loop_every=3))
+        segs = _room()
+        for k in range(13):
+            pose = Pose2D(-2.5 + step * k, 0.0, 0.0)
+            slam.add_scan(0.1 * k, _scan_at(segs, pose), pose)
+        return len(calls)
+    assert attempts(0.12) == 4 and attempts(0.5) == 12
+
+
+def test_a_long_step_between_sparse_scans_is_matched_as_usual_not_as_a_recovery():
+    # one scan per 0.6 m / 20 deg: the prior's 3 sigma exceeds match_xy / match_yaw at every step; only a search
+    # widened after blind motion must reach recovery_accept (0.85)
+    segs = _room()
+    slam = Slam(SlamConfig(loop_closure=False))
+    truth = [Pose2D(-2.4 + 0.6 * k, -0.5 + 0.1 * k, math.radians(20) * (k % 2)) for k in range(9)]
+    for k, pose in enumerate(truth):
+        slam.add_scan(0.1 * k, _scan_at(segs, pose, fov=math.radians(180), n=180), pose)
+    st = slam.stats
+    assert st.matched == len(truth) - 1 and st.recoveries == 0, st

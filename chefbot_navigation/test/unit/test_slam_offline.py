@@ -11,6 +11,7 @@ import pytest
 import rosbag
 import rospy
 from geometry_msgs.msg import TransformStamped
+from hotel_bag import hotel_bag_head
 from sensor_msgs.msg import LaserScan
 
 from chefbot_common.map_io import load_map
@@ -28,13 +29,7 @@ TRUTH = PKG.parent / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 @pytest.fixture(scope="module")
 def short_bag(tmp_path_factory) -> Path:
     """The first 60 s of the hotel bag (the start spin and the first leg)."""
-    out = tmp_path_factory.mktemp("bags") / "short.bag"
-    with rosbag.Bag(str(BAG)) as src, rosbag.Bag(str(out), "w") as dst:
-        for topic, msg, t in src.read_messages():
-            if t.to_sec() > 60.0:
-                break
-            dst.write(topic, msg, t)
-    return out
+    return hotel_bag_head(tmp_path_factory.mktemp("bags") / "short.bag", 60.0)
 
 
 def test_cli_writes_map_and_tum_trajectory(short_bag, tmp_path):
@@ -43,6 +38,8 @@ def test_cli_writes_map_and_tum_trajectory(short_bag, tmp_path):
                         "--refine", "1", "--no-turn-calibration"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "x real time" in r.stdout and "%" in r.stderr            # summary + progress bar
+    assert "slam_offline: odometry bias: " in r.stdout, r.stdout    # what the SLAM learned of the wheels
+    assert "turn scale" not in r.stdout                             # --no-turn-calibration: none learned
     occ = load_map(f"{prefix}.yaml")
     assert set(np.unique(occ.data)) <= {-1, 0, 100} and (occ.data == 100).sum() > 100
     lines = traj.read_text().split()

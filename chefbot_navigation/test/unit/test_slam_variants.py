@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
-import rosbag
+from hotel_bag import hotel_bag_head
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_slam_bag import run_bag
@@ -19,13 +19,7 @@ BAG = Path(__file__).resolve().parents[2] / "test" / "fixtures" / "hotel_route.b
 @pytest.fixture(scope="module")
 def short_bag(tmp_path_factory) -> Path:
     """The first 20 s of the hotel bag (the start spin and some driving)."""
-    out = tmp_path_factory.mktemp("bags") / "short.bag"
-    with rosbag.Bag(str(BAG)) as src, rosbag.Bag(str(out), "w") as dst:
-        for topic, msg, t in src.read_messages():
-            if t.to_sec() > 20.0:
-                break
-            dst.write(topic, msg, t)
-    return out
+    return hotel_bag_head(tmp_path_factory.mktemp("bags") / "short.bag", 20.0)
 
 
 def test_decimate_keeps_a_scan_per_distance_or_turn():

@@ -62,6 +62,7 @@ LOOP_RECENTRES = 2
 EVENT_CLOSURE = "loop closure keyframe"
 EVENT_DROPPED = "loop match keyframe"
 EVENT_CORRECTION = "large correction at scan"
+EVENT_OUTLIER = "loop edge down-weighted:"
 
 
 @dataclass
@@ -90,8 +91,9 @@ class SlamConfig:
     turn_calibration: bool = True        # learn the odometry's turn scale from matched spins (wheel slip)
     turn_calibration_min: float = 6.0    # rad of matched in-place turning before the learned scale is used
     turn_scale_limit: float = 0.15       # [fraction] the learned scale stays within 1 +- this (> 0)
-    odometry_calibration: bool = True    # learn the odometry's distance scale and heading drift per metre from
-    #                                      well-constrained matched steps (wheel radius, unequal wheels)
+    odometry_calibration: bool = True    # apply the distance scale and heading drift per metre learned from
+    #                                      well-constrained matched steps (wheel radius, unequal wheels; always
+    #                                      learned and reported)
     odometry_calibration_min: float = 3.0  # m of matched steps before the learned distance scale is used
     distance_scale_limit: float = 0.15   # [fraction] the learned distance scale stays within 1 +- this (> 0)
     drift_limit: float = 0.1             # [rad/m] the learned heading drift stays within +- this (> 0)
@@ -118,7 +120,8 @@ class SlamConfig:
     loop_yaw: float = 0.35               # rad, loop search half-window
     loop_min_score: float = 0.7          # mean likelihood to accept a loop closure
     loop_max_spread: float = 0.05        # m, reject an ambiguous closure (corridor aliasing)
-    loop_every: int = 3                  # keyframes between loop-closure attempts
+    loop_every: int = 3                  # keyframes between loop-closure attempts; a keyframe that moved n times
+    #                                      linearUpdate counts n (a sparse scan rate: one attempt per step)
     loop_confirm_fit: float = 0.6        # the pose before the closure scores this against the loop candidates:
     #                                      the closure is used only once a second match agrees with it (> 1: never)
     loop_border_gain: float = 0.4        # a match re-centred off the window's edge (or weak: loop_sure_score) scoring
@@ -212,6 +215,7 @@ class SlamStats:
     loop_closures: int = 0
     loop_unconfirmed: int = 0            # held loop matches that no second match confirmed (_close_loop)
     loop_no_maximum: int = 0             # loop matches still on the window's edge after LOOP_RECENTRES searches
+    loop_outliers: int = 0               # loop edges the robust optimisation down-weighted (PoseGraph.outliers)
     optimisations: int = 0
     reintegrated: int = 0
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
@@ -236,8 +240,9 @@ class Slam:
         self.stats = SlamStats()
         # per scan: (stamp, keyframe index, odometry pose) -> pose = kf pose * (kf odom^-1 * odom)
         self._scans: list[tuple[float, int, Pose2D]] = []
-        self._since_loop = 0
+        self._since_loop = 0.0         # keyframes since the last loop-closure attempt, counted by their motion
         self._pending: _Closure | None = None   # a held loop match waiting for a second one (_close_loop)
+        self._outliers_logged: set[tuple[int, int]] = set()
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
         self.bias = OdometryBias(BiasLimits(**{f.name: getattr(c, f.name) for f in fields(BiasLimits)}))
 
@@ -298,9 +303,11 @@ class Slam:
         self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind)
         self._scans.append((t, len(self.keyframes) - 1, odom))
         if c.loop_closure:
-            self._since_loop += 1
+            # with one scan per 0.7 m an attempt every 3rd keyframe is one per ~2 m; counted by distance,
+            # the thinned hotel drive's miscalibrated variants went 0.163 -> 0.136 m and 0.117 -> 0.083 m ATE
+            self._since_loop += max(1.0, moved / max(c.linearUpdate, 1e-9))
             if self._since_loop >= c.loop_every:
-                self._since_loop = 0
+                self._since_loop = 0.0
                 self._close_loop()
         return self.graph.poses[-1]
 
@@ -480,7 +487,19 @@ class Slam:
                                  f"(score {res.score:.2f}, fit before {fit:.2f}"
                                  f"{f', recentred {recentred}x' if recentred else ''}"
                                  f"{', confirmed' if agreed else ''})")
+        self._note_outliers()
         self._reintegrate()
+
+    def _note_outliers(self) -> None:
+        """Count the loop edges the robust optimisation down-weighted (:meth:`PoseGraph.outliers`) and log
+        each the first time: a closure the rest of the graph contradicts, most likely a look-alike place."""
+        out = self.graph.outliers()
+        self.stats.loop_outliers = len(out)
+        for e in out:
+            if (e.i, e.j) not in self._outliers_logged:
+                self._outliers_logged.add((e.i, e.j))
+                self.stats.events.append(f"{EVENT_OUTLIER} keyframe {e.j} -> {e.i} weighs {e.weight:.3f} after the "
+                                         f"robust optimisation (the rest of the map contradicts it)")
 
     def _add_loop_edge(self, cl: _Closure) -> None:
         c = self.cfg
@@ -549,6 +568,7 @@ class Slam:
                 break
             self.graph.optimize(max_iterations=100)
             self.stats.optimisations += 1
+            self._note_outliers()
             self._reintegrate()
         self.stats.refine_edges = n_edges
         return n_edges
