@@ -498,3 +498,25 @@ def test_a_long_step_between_sparse_scans_is_matched_as_usual_not_as_a_recovery(
         slam.add_scan(0.1 * k, _scan_at(segs, pose, fov=math.radians(180), n=180), pose)
     st = slam.stats
     assert st.matched == len(truth) - 1 and st.recoveries == 0, st
+
+
+def _slip_against_an_obstacle(cfg: SlamConfig) -> float:
+    """The robot maps a bit, then its camera goes blind while its wheels spin against a chair (odometry runs
+    on 0.6 m, the robot stays), then it sees again.  Returns the pose error (m) at the first scan after."""
+    segs = _room()
+    slam = Slam(cfg)
+    truth = [Pose2D(-2.0 + 0.1 * k, -0.5, 0.0) for k in range(15)]
+    for k, pose in enumerate(truth):
+        slam.add_scan(0.1 * k, _scan_at(segs, pose), pose)
+    stuck, t = truth[-1], 1.5
+    blind = scan_from_ranges(np.full(360, np.inf), -math.pi, 2 * math.pi / 360, 0.05, 8.0, Pose2D(), 8.0)
+    for k in range(1, 7):                               # 0.6 m of wheel turning, nothing seen
+        slam.add_scan(t + 0.1 * k, blind, Pose2D(stuck.x + 0.1 * k, stuck.y, 0.0))
+    back = slam.add_scan(t + 0.8, _scan_at(segs, stuck), Pose2D(stuck.x + 0.75, stuck.y, 0.0))
+    return back.distance(stuck)
+
+
+def test_the_search_window_grows_with_blind_motion_and_finds_the_robot_again():
+    assert _slip_against_an_obstacle(SlamConfig()) < 0.05
+    # held to the usual window, the match cannot reach back 0.75 m: the error stays
+    assert _slip_against_an_obstacle(SlamConfig(max_xy=0.25)) > 0.3

@@ -105,6 +105,8 @@ class SlamConfig:
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
     sigma_yaw_min: float = 0.02          # [rad] least yaw std-dev of the odometry prior (> 0)
     max_xy: float = 1.0                  # m, largest search half-window after blind motion
+    blind_slip: float = 0.5              # [m/m] after blind motion the prior's std-dev grows by this per metre the
+    #                                      odometry counted (wheels slipping against an obstacle; >= 0)
     recovery_min_beams: int = 80         # obstacle returns needed for a search widened after blind motion (few
     #                                      beams match anywhere)
     recovery_accept: float = 0.85        # mean likelihood such a search's pose needs to be taken
@@ -165,7 +167,7 @@ class SlamConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
-                     "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband"):
+                     "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -294,6 +296,10 @@ class Slam:
             # odometry error since the last accepted match (keyframes in between were blind)
             dist, turn = self._blind[0] + moved, self._blind[1] + abs(rel.yaw)
             sxy = c.sigma_xy_min + c.srr * dist + c.srt * turn
+            if self._blind != (0.0, 0.0):
+                # nothing checked the odometry since the last match: the wheels may have turned against an
+                # obstacle (a camera inside its 0.45 m minimum range sees nothing), the robot not moving
+                sxy += c.blind_slip * dist
             syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
             pose, ok, spread = self._track(scan, predicted, (sxy, syaw))
             if ok and self._blind == (0.0, 0.0):
