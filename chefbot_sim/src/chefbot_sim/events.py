@@ -12,7 +12,7 @@ from typing import Literal, NamedTuple, TypedDict, Union
 import numpy as np
 
 SensorKind = Literal["clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb",
-                     "bumper"]
+                     "bumper", "lidar"]
 
 
 class JointStatesData(TypedDict):
@@ -76,6 +76,20 @@ class CliffData(TypedDict):
     range: np.ndarray
 
 
+class LidarData(TypedDict):
+    """One 2-D lidar scan: beam i at angle_min + i * angle_increment (rad, about the frame's +z), ranges (m,
+    float32; +inf = no return within range_max, -inf = closer than range_min; REP 117), period (s), frame."""
+
+    ranges: np.ndarray
+    angle_min: float
+    angle_increment: float
+    angle_max: float
+    range_min: float
+    range_max: float
+    scan_time: float
+    frame: str
+
+
 class BumperData(TypedDict):
     """Whether the robot touches anything, and the names of the bodies it touches."""
 
@@ -85,7 +99,7 @@ class BumperData(TypedDict):
 
 # clock: sim time (s); depth: float32 (H, W) m; rgb: uint8 (H, W, 3)
 EventData = Union[float, np.ndarray, JointStatesData, GroundTruthData, OdomData, ImuData, UltrasonicData,
-                  CliffData, BumperData]
+                  CliffData, BumperData, LidarData]
 
 
 class Event(NamedTuple):

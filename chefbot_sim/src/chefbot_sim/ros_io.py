@@ -8,17 +8,17 @@ from __future__ import annotations
 import numpy as np
 import rospy
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, Range
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, Range
 
 from chefbot_bringup.odometry import OdometryState
 from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs
-from chefbot_sim.events import CliffData, GroundTruthData, ImuData, JointStatesData, OdomData, UltrasonicData
+from chefbot_sim.events import CliffData, GroundTruthData, ImuData, JointStatesData, LidarData, OdomData, UltrasonicData
 from chefbot_vision.ros_io import camera_info
 
 _ZERO_COV = np.zeros((6, 6))
 
 __all__ = ["camera_info_msg", "cliff_msgs", "depth_to_image", "ground_truth_msg", "imu_msg", "joint_state_msg",
-           "odom_msgs", "range_msg", "rgb_to_image"]
+           "laser_scan_msg", "odom_msgs", "range_msg", "rgb_to_image"]
 
 
 def sim_stamp(t: float) -> rospy.Time:
@@ -92,6 +92,18 @@ def cliff_msgs(d: CliffData, stamp) -> list[Range]:
                        "max_range": float(d["max_range"][i]), "field_of_view": float(d["field_of_view"][i])},
                       stamp, frame, Range.INFRARED)
             for i, frame in enumerate(d["frames"])]
+
+
+def laser_scan_msg(d: LidarData, stamp) -> LaserScan:
+    """sensor_msgs/LaserScan of one lidar scan, in the lidar's frame (all beams at one instant:
+    time_increment 0)."""
+    m = LaserScan()
+    m.header.stamp, m.header.frame_id = stamp, d["frame"]
+    m.angle_min, m.angle_max, m.angle_increment = d["angle_min"], d["angle_max"], d["angle_increment"]
+    m.time_increment, m.scan_time = 0.0, d["scan_time"]
+    m.range_min, m.range_max = d["range_min"], d["range_max"]
+    m.ranges = d["ranges"].tolist()
+    return m
 
 
 def camera_info_msg(info: dict, frame: str) -> CameraInfo:

@@ -33,8 +33,9 @@ from chefbot_common.geometry import Pose2D, wrap_angle, yaw_from_quaternion
 from chefbot_sim import battery, imu_model
 from chefbot_sim.bullet import BulletError, BulletSim
 from chefbot_sim.camera import RgbdRenderer, RgbFrame
-from chefbot_sim.events import CliffData, Event, GroundTruthData, ImuData, OdomData, UltrasonicData
+from chefbot_sim.events import CliffData, Event, GroundTruthData, ImuData, LidarData, OdomData, UltrasonicData
 from chefbot_sim.firmware_drive import DcMotor, FirmwareDrive, motor_from_joint_limits
+from chefbot_sim.lidar import LidarConfig
 from chefbot_sim.raycast import RayCaster
 from chefbot_sim.wheel_noise import WheelNoise, measure_wheels, quantise
 from chefbot_sim.world import Shape, World, surface_height
@@ -42,7 +43,8 @@ from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
-SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper")
+SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper",
+           "lidar")
 DRIVES = ("plugin", "firmware")
 
 
@@ -89,7 +91,23 @@ class SimOptions:
     wheel_slip_stddev: float = 0.0         # m per sqrt(m) of wheel travel
     wheel_encoder_counts: int = 0          # [counts/rev] plugin mode: encoder counts per wheel turn the odometry
                                            # is quantised to (0 = none)
+    # optional 2-D lidar (chefbot_sim.lidar; the model needs the xacro's lidar:=360|270 for its frame)
+    lidar_fov: float = 0.0             # [deg] field of view centred on the laser frame's +x: 0 = no lidar, else
+                                       # (0, 360] (360: a full circle); scan on topic 'scan'
+    lidar_beams: int = 360             # beams per scan (>= 2)
+    lidar_rate: float = 10.0           # [Hz] scans per second of sim time (> 0)
+    lidar_range_min: float = 0.12      # [m] closer returns read -inf (REP 117; >= 0)
+    lidar_range_max: float = 12.0      # [m] nothing within it reads +inf (REP 117; > lidar_range_min)
+    lidar_noise: float = 0.01          # [m] standard deviation of the range noise (>= 0)
+    lidar_frame: str = "laser"         # URDF link / tf frame of the scan plane (with the tf prefix, if any)
     time_step: float = 1.0 / 240.0
+
+    def lidar_config(self) -> LidarConfig | None:
+        """The lidar's settings from these options (None: no lidar)."""
+        if self.lidar_fov == 0:
+            return None
+        return LidarConfig(self.lidar_fov, self.lidar_beams, self.lidar_rate, self.lidar_range_min,
+                           self.lidar_range_max, self.lidar_noise, self.lidar_frame)
 
     def battery_config(self) -> battery.BatteryConfig:
         """The battery model's settings from these options."""
@@ -128,6 +146,11 @@ class SimOptions:
             self.wheel_noise.validate()
         except ValueError as e:
             raise SimConfigError(str(e)) from None
+        if self.lidar_fov != 0:
+            try:
+                self.lidar_config().validate()
+            except ValueError as e:
+                raise SimConfigError(str(e)) from None
 
     @property
     def wheel_noise(self) -> WheelNoise:
@@ -267,12 +290,23 @@ class Simulator:
         self._caster = RayCaster(world.shapes)
         self._build_depth_rays()
         self._sonar_dirs = self._cone(p.ultrasonic.field_of_view / 2.0, self.options.sonar_rings)
+        self.lidar = self.options.lidar_config()
+        if self.lidar is not None:
+            try:
+                self.bullet.frame(self.lidar.frame)
+            except BulletError as e:
+                self.bullet.close()
+                raise SimConfigError(f"lidar_fov is {self.lidar.fov:g} but the robot has no frame "
+                                     f"'{self.lidar.frame}' (expand the xacro with lidar:=360 or lidar:=270, "
+                                     f"or set lidar_frame): {e}") from None
+            self._lidar_dirs = self.lidar.directions()
         self.rates = {
             "clock": self.options.clock_rate, "joint_states": self.options.joint_state_rate,
             "ground_truth": self.options.ground_truth_rate, "odom": p.drive.update_rate,
             "imu": p.imu.update_rate, "ultrasonic": p.ultrasonic.update_rate,
             "cliff": max((c.update_rate for c in p.cliffs), default=0.0),
             "depth": cam.update_rate, "rgb": self.options.rgb_rate, "bumper": self.options.bumper_rate,
+            "lidar": self.lidar.rate if self.lidar is not None else 0.0,
         }
         self.drive = self.options.drive
         if self.drive == "firmware":
@@ -445,6 +479,8 @@ class Simulator:
             return self.depth_image()
         if kind == "rgb":
             return self.rgb_image()
+        if kind == "lidar":
+            return self.lidar_scan()
         if kind == "bumper":
             contacts = self.bullet.robot_contacts()
             return {"pressed": bool(contacts),
@@ -542,6 +578,24 @@ class Simulator:
             r = min(max(r, us.min_range), us.max_range)
         return {"range": r, "min_range": us.min_range, "max_range": us.max_range,
                 "field_of_view": us.field_of_view}
+
+    def lidar_scan(self) -> LidarData:
+        """One scan of the lidar: a ray per beam in the laser frame's x-y plane, one ``rayTestBatch``
+        against every body of the world (spawned obstacles included) and the floor (which only a
+        tilted robot sees), never the robot itself.  Ranges (m) per :meth:`LidarConfig.ranges`:
+        noise, +inf = no return within range_max, -inf = closer than range_min (REP 117).
+
+        The whole scan is taken at one instant (the sim time of the event): the sweep of a real
+        spinning unit during its 0.1 s turn is not modelled, so ``time_increment`` is 0."""
+        lid = self.lidar
+        pos, rot = self.bullet.frame_pose(lid.frame)
+        dirs = self._lidar_dirs @ rot.T
+        frac, _ = self.bullet.cast_rays(np.broadcast_to(pos, dirs.shape), pos + dirs * lid.range_max, floor=True)
+        dist = np.where(frac < 1.0, frac * lid.range_max, np.inf)
+        return {"ranges": lid.ranges(dist, self.rng), "angle_min": lid.angle_min,
+                "angle_increment": lid.angle_increment, "angle_max": lid.angle_max,
+                "range_min": lid.range_min, "range_max": lid.range_max, "scan_time": 1.0 / lid.rate,
+                "frame": lid.frame}
 
     def _build_cliffs(self) -> None:
         """Cliff sensors of the URDF block: per sensor its parent frame, beam origin and
