@@ -46,7 +46,7 @@ sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
 from chefbot_common.map_io import load_map  # noqa: E402
 from chefbot_navigation.ros_slam_bag import run_bag  # noqa: E402
 from chefbot_navigation.slam.mapper import SlamConfig  # noqa: E402
-from chefbot_navigation.slam.metrics import ate_rms, map_quality  # noqa: E402
+from chefbot_navigation.slam.metrics import aligned_errors, map_quality  # noqa: E402
 from chefbot_navigation.slam.synthetic import Decimate, OdometryNoise  # noqa: E402
 
 BAG = ROOT / "chefbot_navigation" / "test" / "fixtures" / "hotel_route.bag"
@@ -67,14 +67,6 @@ def ground_truth(bag_path: Path) -> np.ndarray:
                          for _, m, _ in bag.read_messages(topics=["/ground_truth/odom"])])
 
 
-def ate_max(est: np.ndarray, truth: np.ndarray) -> float:
-    """Largest position error (m) after the best rigid 2-D alignment (the one of ``metrics.ate_rms``)."""
-    me, mt = est.mean(axis=0), truth.mean(axis=0)
-    u, _, vt = np.linalg.svd((est - me).T @ (truth - mt))
-    rot = vt.T @ np.diag([1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
-    return float(np.hypot(*((rot @ (est - me).T).T + mt - truth).T).max())
-
-
 def trajectory_error(bag_path: Path, cfg: SlamConfig, odom_filter: Callable | None = None,
                      scan_filter: Callable | None = None) -> dict:
     """Run the offline SLAM on the bag (``run_bag``'s filters); ATE RMS and max (m) over the scans given."""
@@ -85,7 +77,8 @@ def trajectory_error(bag_path: Path, cfg: SlamConfig, odom_filter: Callable | No
     t = np.array([s for s, _ in traj])
     est = np.array([(p.x, p.y) for _, p in traj])
     truth = np.column_stack((np.interp(t, gt[:, 0], gt[:, 1]), np.interp(t, gt[:, 0], gt[:, 2])))
-    return {"result": res, "slam": slam, "ate": ate_rms(est, truth), "ate_max": ate_max(est, truth),
+    err = aligned_errors(est, truth)
+    return {"result": res, "slam": slam, "ate": float(np.sqrt(np.mean(err ** 2))), "ate_max": float(err.max()),
             "scans": res.scans, "decimated": res.decimated}
 
 

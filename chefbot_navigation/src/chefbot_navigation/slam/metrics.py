@@ -10,7 +10,8 @@
   that the estimate knows as free.
 * :func:`ate_rms`: absolute trajectory error (RMS of position differences
   after the best rigid 2-D alignment, Horn/Umeyama without scale), the metric
-  of Kümmerle et al. 2009 / Sturm et al. 2012.
+  of Kümmerle et al. 2009 / Sturm et al. 2012; :func:`aligned_errors` gives
+  the per-pose errors after that alignment (their max: the benchmark's ATE max).
 """
 from __future__ import annotations
 
@@ -111,8 +112,9 @@ def map_quality(est: OccupancyMap, truth: OccupancyMap, start_xy: tuple[float, f
     return best
 
 
-def ate_rms(est: np.ndarray, truth: np.ndarray) -> float:
-    """RMS (m) of position error after the best rigid alignment; est, truth (N, 2) at the same stamps."""
+def aligned_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(N,) position error (m) of each pose after the best rigid alignment of est onto truth ((N, 2) each,
+    at the same stamps)."""
     est, truth = np.asarray(est, float), np.asarray(truth, float)
     if est.shape != truth.shape or len(est) < 2:
         raise ValueError(f"need two matching (N >= 2, 2) trajectories, got {est.shape} and {truth.shape}")
@@ -122,4 +124,9 @@ def ate_rms(est: np.ndarray, truth: np.ndarray) -> float:
     d = np.sign(np.linalg.det(vt.T @ u.T))
     rot = vt.T @ np.diag([1.0, d]) @ u.T
     aligned = (rot @ (est - me).T).T + mt
-    return float(np.sqrt(((aligned - truth) ** 2).sum(axis=1).mean()))
+    return np.sqrt(((aligned - truth) ** 2).sum(axis=1))
+
+
+def ate_rms(est: np.ndarray, truth: np.ndarray) -> float:
+    """RMS (m) of position error after the best rigid alignment; est, truth (N, 2) at the same stamps."""
+    return float(np.sqrt(np.mean(aligned_errors(est, truth) ** 2)))
