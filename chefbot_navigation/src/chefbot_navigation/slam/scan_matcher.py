@@ -186,13 +186,7 @@ def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: Sea
     The coarse search is a branch and bound (see the module docstring); its result is the
     exhaustive one of :func:`match_exhaustive`, which it falls back to for small windows.
     """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
-        return MatchResult(prior, 0.0, 0)
-    co = _coarse(field, pts, prior, window)
-    search = _search_exhaustive if len(co.dths) * len(co.offs) ** 2 * len(pts) < EXHAUSTIVE_BELOW else _search_bnb
-    t, iy, ix, spread = search(field, co, _Ranking(field.res, co.dths, window, len(pts), prior_sigma, beams_per_dof))
-    return _finish(field, pts, prior, window, co, (t, iy, ix), spread, prior_sigma, beams_per_dof)
+    return _match(field, points, prior, window, prior_sigma, beams_per_dof, exhaustive=False)
 
 
 def match_exhaustive(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
@@ -201,12 +195,19 @@ def match_exhaustive(field: LikelihoodField, points: np.ndarray, prior: Pose2D, 
 
     The reference for the branch and bound (tests, benchmark); its memory grows with the window.
     """
+    return _match(field, points, prior, window, prior_sigma, beams_per_dof, exhaustive=True)
+
+
+def _match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
+           prior_sigma: tuple[float, float] | None, beams_per_dof: float, exhaustive: bool) -> MatchResult:
+    """:func:`match` (``exhaustive``: always the exhaustive coarse search, else the faster of the two)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
         return MatchResult(prior, 0.0, 0)
     co = _coarse(field, pts, prior, window)
-    t, iy, ix, spread = _search_exhaustive(field, co, _Ranking(field.res, co.dths, window, len(pts), prior_sigma,
-                                                               beams_per_dof))
+    small = len(co.dths) * len(co.offs) ** 2 * len(pts) < EXHAUSTIVE_BELOW
+    search = _search_exhaustive if exhaustive or small else _search_bnb
+    t, iy, ix, spread = search(field, co, _Ranking(field.res, co.dths, window, len(pts), prior_sigma, beams_per_dof))
     return _finish(field, pts, prior, window, co, (t, iy, ix), spread, prior_sigma, beams_per_dof)
 
 
