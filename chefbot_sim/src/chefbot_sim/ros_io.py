@@ -10,8 +10,9 @@ import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, Range
 
+from chefbot_bringup.depth_scan import Scan
 from chefbot_bringup.odometry import OdometryState
-from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs
+from chefbot_bringup.ros_io import depth_to_image, odometry_to_msgs, scan_to_msg
 from chefbot_sim.events import CliffData, GroundTruthData, ImuData, JointStatesData, LidarData, OdomData, UltrasonicData
 from chefbot_vision.ros_io import camera_info
 
@@ -97,13 +98,8 @@ def cliff_msgs(d: CliffData, stamp) -> list[Range]:
 def laser_scan_msg(d: LidarData, stamp) -> LaserScan:
     """sensor_msgs/LaserScan of one lidar scan, in the lidar's frame (all beams at one instant:
     time_increment 0)."""
-    m = LaserScan()
-    m.header.stamp, m.header.frame_id = stamp, d["frame"]
-    m.angle_min, m.angle_max, m.angle_increment = d["angle_min"], d["angle_max"], d["angle_increment"]
-    m.time_increment, m.scan_time = 0.0, d["scan_time"]
-    m.range_min, m.range_max = d["range_min"], d["range_max"]
-    m.ranges = d["ranges"].tolist()
-    return m
+    scan = Scan(d["angle_min"], d["angle_max"], d["angle_increment"], d["ranges"])
+    return scan_to_msg(scan, stamp, d["frame"], d["range_min"], d["range_max"], d["scan_time"])
 
 
 def camera_info_msg(info: dict, frame: str) -> CameraInfo:
