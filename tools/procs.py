@@ -113,6 +113,12 @@ def kill_group(pgid: int, grace_int: float = 5.0, grace_term: float = 3.0) -> No
             time.sleep(0.05)
         if not group_alive(pgid):
             break
+    stop_tracked(tracked, grace_term)
+
+
+def stop_tracked(tracked: dict[int, str], grace_term: float = 3.0) -> None:
+    """SIGTERM, then SIGKILL, to the processes of ``tracked`` (from :func:`group_tree`) still alive:
+    the nodes a roslaunch left behind when it was killed, or when it ended before they did."""
     for sig, grace in ((signal.SIGTERM, grace_term), (signal.SIGKILL, 1.0)):
         survivors = _survivors(tracked)
         if not survivors:

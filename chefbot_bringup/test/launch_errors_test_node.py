@@ -9,17 +9,23 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
 import unittest
+from pathlib import Path
 
 import rospy
 import rostest
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import Range
+from std_msgs.msg import Float32
 
 from chefbot_firmware.virtual_board import VirtualBoard
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+from procs import group_tree, kill_group, stop_tracked
 
 
 def start(cmd: list[str]) -> tuple[subprocess.Popen, tempfile.TemporaryFile]:
@@ -30,23 +36,22 @@ def start(cmd: list[str]) -> tuple[subprocess.Popen, tempfile.TemporaryFile]:
 
 
 def finish(proc: subprocess.Popen, out, timeout: float) -> tuple[int | None, str]:
-    """Wait up to `timeout` s for the process to end by itself; kill its group in any case."""
-    try:
-        rc = proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        rc = None
-    finally:
-        if proc.poll() is None or rc is None:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            proc.wait()
-        else:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)   # anything the launch left behind
-            except ProcessLookupError:
-                pass
+    """Wait up to `timeout` s for the process to end by itself, then stop it and everything it started.
+
+    roslaunch starts each node in a session of its own, so a signal to roslaunch's group does not
+    reach them: the nodes seen while waiting are stopped too if they outlive it (a launch killed
+    after the timeout, or one that ended before its nodes did).
+    """
+    tracked = group_tree(proc.pid)
+    deadline = time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < deadline:
+        tracked.update(group_tree(proc.pid))
+        time.sleep(0.1)
+    rc = proc.poll()
+    if rc is None:
+        kill_group(proc.pid)      # SIGINT (roslaunch stops its nodes), SIGTERM, SIGKILL, then the nodes left
+    proc.wait()
+    stop_tracked(tracked)
     out.seek(0)
     return rc, out.read().decode(errors="replace")
 
@@ -54,6 +59,32 @@ def finish(proc: subprocess.Popen, out, timeout: float) -> tuple[int | None, str
 def text_of(out) -> str:
     out.seek(0)
     return out.read().decode(errors="replace")
+
+
+class ChainWatch:
+    """Counts the forward commands at each hop of the drive chain: where it stopped, when the robot
+    never drove (cmd_vel -> cliff_guard -> cmd_vel_guarded -> twist_to_motors -> lwheel_vtarget ->
+    lwheel_pid -> left_wheel_speed -> launchpad_node -> the board)."""
+
+    HOPS = (("cmd_vel_guarded", Twist, lambda m: m.linear.x), ("lwheel_vtarget", Float32, lambda m: m.data),
+            ("left_wheel_speed", Float32, lambda m: m.data))
+
+    def __init__(self) -> None:
+        self.seen = {name: [0, 0] for name, _, _ in self.HOPS}     # messages, of them forward
+        self.subs = [rospy.Subscriber(name, cls, self._on, callback_args=(name, value), queue_size=10)
+                     for name, cls, value in self.HOPS]
+
+    def _on(self, msg, args) -> None:
+        name, value = args
+        self.seen[name][0] += 1
+        self.seen[name][1] += value(msg) > 0
+
+    def summary(self) -> str:
+        return ", ".join(f"{name} {n} msgs ({fwd} forward)" for name, (n, fwd) in self.seen.items())
+
+    def close(self) -> None:
+        for sub in self.subs:
+            sub.unregister()
 
 
 def launch(*args: str) -> list[str]:
@@ -87,15 +118,20 @@ class TestLaunchErrors(unittest.TestCase):
         running.set()
         moving = threading.Event()
 
+        stepper_error: list[str] = []
+
         def step() -> None:
             last = time.monotonic()
-            while running.is_set():
-                time.sleep(0.002)
-                now = time.monotonic()
-                board.step(now - last)
-                last = now
-                if board.fw.command(0) > 0:
-                    moving.set()
+            try:
+                while running.is_set():
+                    time.sleep(0.002)
+                    now = time.monotonic()
+                    board.step(now - last)
+                    last = now
+                    if board.fw.command(0) > 0:
+                        moving.set()
+            except Exception as exc:      # named in the failure message instead of a silent thread
+                stepper_error.append(repr(exc))
         stepper = threading.Thread(target=step, daemon=True)
         stepper.start()
         pub = rospy.Publisher("cmd_vel", Twist, queue_size=1)
@@ -108,6 +144,7 @@ class TestLaunchErrors(unittest.TestCase):
             for p in cliffs:
                 p.publish(floor)
             pub.publish(twist)
+        chain = ChainWatch()
         proc, out = start(launch(f"port:={link}", "cliff_guard:=true"))
         try:
             twist = Twist()
@@ -116,7 +153,9 @@ class TestLaunchErrors(unittest.TestCase):
             while not moving.is_set() and time.monotonic() < deadline and proc.poll() is None:
                 send(twist)
                 time.sleep(0.1)
-            self.assertTrue(moving.is_set(), f"the robot never drove:\n{text_of(out)[-1500:]}")
+            self.assertTrue(moving.is_set(), f"the robot never drove: {chain.summary()}; board stepping "
+                            f"{stepper_error or 'ok'}; roslaunch {'running' if proc.poll() is None else 'ended'}"
+                            f"\n{text_of(out)[-3000:]}")
             for _ in range(10):                      # Ctrl-C while the loops are busy publishing
                 send(twist)
                 time.sleep(0.1)
@@ -128,6 +167,7 @@ class TestLaunchErrors(unittest.TestCase):
         finally:
             if proc.poll() is None:
                 finish(proc, out, 0.0)
+            chain.close()
             running.clear()
             stepper.join(timeout=2)
             board.close()
