@@ -130,7 +130,7 @@ class TestLaunchErrors(unittest.TestCase):
                     last = now
                     if board.fw.command(0) > 0:
                         moving.set()
-            except Exception as exc:      # named in the failure message instead of a silent thread
+            except Exception as exc:  # noqa: BLE001 -- any error is named in the failure message, not lost in a thread
                 stepper_error.append(repr(exc))
         stepper = threading.Thread(target=step, daemon=True)
         stepper.start()

@@ -206,3 +206,60 @@ def test_a_rostest_declaring_a_long_time_limit_gets_it_and_runs_last(write_test)
     assert run_tests.wall_timeout(short) == max(default, 540.0)
     assert run_tests.wall_timeout(long_) == default + 1020.0
     assert not run_tests.is_long(short) and not run_tests.is_long(none) and run_tests.is_long(long_)
+
+
+def test_stop_tracked_stops_a_node_its_launcher_left_behind() -> None:
+    # the launcher ends by itself (as roslaunch does after a failure) before its setsid child does
+    script = "setsid bash -c \"trap '' INT; sleep 60\" & sleep 0.5"
+    p = subprocess.Popen(["bash", "-c", script], start_new_session=True)
+    tracked: dict[int, str] = {}
+    while p.poll() is None:
+        tracked.update(procs.group_tree(p.pid))
+        time.sleep(0.02)
+    orphans = procs._survivors(tracked)
+    assert orphans, "the child should outlive its launcher"
+    procs.stop_tracked(tracked, grace_term=0.5)
+    assert procs._survivors(tracked) == []
+
+
+def _fake_runs(monkeypatch, outcomes: dict[str, list[bool]]) -> list[tuple[str, int]]:
+    """run_rostest replaced: each file passes or fails by its list of outcomes, run after run."""
+    calls: list[tuple[str, int]] = []
+
+    def fake(env, pkg, test, run=1):
+        calls.append((test.stem, run))
+        ok = outcomes[test.stem][run - 1]
+        return run_tests.Totals(passed=int(ok), failed=int(not ok),
+                                failures=[] if ok else [f"{pkg}/{test.stem}: run {run} failed"])
+    monkeypatch.setattr(run_tests, "run_rostest", fake)
+    return calls
+
+
+def test_a_failed_rostest_runs_again_at_the_end_and_only_the_last_run_counts(monkeypatch) -> None:
+    calls = _fake_runs(monkeypatch, {"steady": [True], "flaky": [False, True], "broken": [False, False]})
+    r = run_tests.Retries({}, 1)
+    total = run_tests.Totals()
+    for stem in ("steady", "flaky", "broken"):
+        total.add(r.first("pkg", Path(f"/x/{stem}.test")))
+    assert (total.passed, total.failed) == (1, 0)       # the failed ones wait for their second run
+    total.add(r.finish())
+    assert (total.passed, total.failed) == (2, 1)
+    assert total.failures == ["pkg/broken: run 2 failed"]
+    assert calls == [("steady", 1), ("flaky", 1), ("broken", 1), ("flaky", 2), ("broken", 2)]
+    assert [n.split(":")[0] for n in r.notes] == ["RETRIED pkg/flaky", "RETRIED pkg/broken"]
+    assert "passed on run 2; the first run: pkg/flaky: run 1 failed" in r.notes[0]
+    assert "failed again on run 2" in r.notes[1]
+
+
+def test_no_retries_counts_the_first_failure(monkeypatch) -> None:
+    _fake_runs(monkeypatch, {"flaky": [False, True]})
+    r = run_tests.Retries({}, 0)
+    t = r.first("pkg", Path("/x/flaky.test"))
+    assert (t.passed, t.failed) == (0, 1)
+    assert (r.finish().failed, r.notes) == (0, [])
+
+
+@pytest.mark.parametrize("raw, runs", [("", 1), ("0", 0), ("2", 2), ("x", 1), ("-1", 1)])
+def test_retries_setting(monkeypatch, raw: str, runs: int) -> None:
+    monkeypatch.setenv("CHEFBOT_TEST_RETRIES", raw)
+    assert run_tests.rostest_retries() == runs
