@@ -128,11 +128,17 @@ def junit_totals(path: Path, label: str) -> Totals:
 
 def failure_reason(el: ET.Element, limit: int = 300) -> str:
     """The first line of a JUnit <failure>/<error>: its message, else its text (for the closing FAILED
-    lines, which CI's log tail shows when a test's own output has scrolled away)."""
+    lines, which CI's log tail shows when a test's own output has scrolled away).  When unittest put
+    the test's own message after a multi-line diff (``'A' != 'B'`` / ``- A`` / ``+ B`` / `` : msg``),
+    that message's first line is added: it is the one that says why."""
     for text in (el.get("message"), el.text):
         lines = [ln.strip() for ln in (text or "").splitlines() if ln.strip()]
         if lines:
-            return lines[0][:limit]
+            first = lines[0]
+            own = next((ln for ln in lines[1:] if ln.startswith(": ")), None)
+            if own is not None and own not in first:
+                first += " " + own
+            return first[:limit]
     return ""
 
 

@@ -51,6 +51,16 @@ def test_junit_failure_reason_is_the_first_line_of_message_or_text(tmp_path: Pat
     assert t.failures == ["lbl::c.t: 0.70 not greater than 0.75", "lbl::c.u"]
 
 
+def test_junit_failure_reason_keeps_the_tests_own_message_after_a_diff(tmp_path: Path) -> None:
+    # assertEqual on strings: unittest's diff first, the test's own message after " : "
+    xml = tmp_path / "r.xml"
+    xml.write_text('<testsuite tests="1"><testcase classname="c" name="t"><failure type="AssertionError">\n'
+                   "'ABORTED' != 'SUCCEEDED'\n- ABORTED\n+ SUCCEEDED\n : table_4: no plan\nmore</failure>"
+                   '</testcase></testsuite>')
+    t = run_tests.junit_totals(xml, "lbl")
+    assert t.failures == ["lbl::c.t: 'ABORTED' != 'SUCCEEDED' : table_4: no plan"]
+
+
 def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:
     # rostest writes this when the test node never came up
     xml = tmp_path / "r.xml"
