@@ -6,24 +6,14 @@ robot's *belief* (odometry.integrate_arc with the configured ticks_meter and bas
 against DiffOdometry itself), so the robot believes it drove the square.
 """
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-# The workspace's devel space points chefbot_bringup at the main checkout's src/; put this
-# checkout's src/ first so that a worktree tests its own module (a no-op in the main checkout).
-_SRC = Path(__file__).resolve().parents[2] / "src"
-sys.path.insert(0, str(_SRC))
-import chefbot_bringup  # noqa: E402
-
-if str(_SRC / "chefbot_bringup") not in chefbot_bringup.__path__:   # imported earlier in this session
-    chefbot_bringup.__path__.insert(0, str(_SRC / "chefbot_bringup"))
-
-from chefbot_bringup.odometry import DiffOdometry, OdometryConfig, integrate_arc  # noqa: E402
-from chefbot_bringup.odometry_calibration import (  # noqa: E402
+from chefbot_bringup.odometry import DiffOdometry, OdometryConfig, integrate_arc
+from chefbot_bringup.odometry_calibration import (
     MAX_END_ERROR_PER_SIDE,
     Calibration,
     calibrate,
@@ -35,6 +25,7 @@ from chefbot_bringup.odometry_calibration import (  # noqa: E402
     wheel_factors,
 )
 
+PKG = Path(__file__).resolve().parents[2]   # chefbot_bringup
 TPM = 29708.0       # param/diff_drive.yaml
 B = 0.30
 
@@ -391,7 +382,7 @@ def test_yaml_has_the_diff_drive_keys_and_says_how(tmp_path):
     assert path.parent.is_dir()
     text = path.read_text()
     data = yaml.safe_load(text)
-    shipped = yaml.safe_load((_SRC.parent / "param" / "diff_drive.yaml").read_text())
+    shipped = yaml.safe_load((PKG / "param" / "diff_drive.yaml").read_text())
     assert {"ticks_meter", "base_width"} <= set(shipped) & set(data)
     # printed to 0.1 tick/m and 0.01 mm
     assert data["ticks_meter"] == pytest.approx(cal.ticks_meter, abs=0.05)
