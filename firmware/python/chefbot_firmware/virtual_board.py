@@ -18,7 +18,7 @@ import math
 import os
 import pty
 import tty
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 from chefbot_firmware.host import LEFT, RIGHT, FirmwareHost
@@ -43,6 +43,70 @@ MALFORMED_BURST: tuple[bytes, ...] = (
 )
 EDGES_PER_REV = 8400            # quadrature edges per wheel revolution (64 CPR x 131.25 gear, 4X)
 FREE_SPEED_RAD_S = 80 * 2 * math.pi / 60  # Pololu 37D 80 RPM at 12 V, full duty
+WHEEL_RADIUS = 0.045            # m, nominal: the 90 mm wheel of ticks_meter (chefbot_bringup/param/diff_drive.yaml)
+# firmware/core/config.h defaults: the right motor and encoder are mounted mirrored.
+MOUNT_DEFAULTS = {"invert_left": False, "invert_right": True,
+                  "invert_left_encoder": False, "invert_right_encoder": True}
+
+
+@dataclass(frozen=True)
+class BuildFaults:
+    """How the emulated robot was built wrong (issue 31); all off = a correctly built robot.
+
+    The faults sit where the builder makes them, not in the firmware: between the
+    VNH2SP30 outputs and the motors (leads, channels) and between the encoders and the
+    board's decoder inputs (A/B, connectors).  The firmware's ``invert_*`` flags
+    (core/config.h) are left alone and still describe the robot as it should be.
+
+    * ``left_leads_swapped`` / ``right_leads_swapped``: that motor's two leads are
+      swapped at the driver: it turns opposite to the firmware's output.
+    * ``left_encoder_reversed`` / ``right_encoder_reversed``: that encoder's A and B
+      wires are swapped: its wheel turns as commanded, the decoder counts the other way.
+    * ``encoders_swapped``: the left encoder's connector is on the right decoder's pins
+      and vice versa.  The right encoder is mounted mirrored, so the crossed counts also
+      change sign (the decoder's ``invert_*_encoder`` flag is meant for the other encoder).
+    * ``motors_swapped``: the left channel's outputs drive the right motor and vice versa
+      (with a change of sign for the same reason: the right motor is mounted mirrored).
+    * ``left_wheel_scale`` / ``right_wheel_scale``: true wheel radius over nominal
+      (e.g. 1.03 / 0.99).  Counts per wheel turn do not change (robot on blocks); it
+      only scales :meth:`VirtualBoard.wheel_travel`, the distance the wheel would roll.
+    """
+
+    left_leads_swapped: bool = False
+    right_leads_swapped: bool = False
+    left_encoder_reversed: bool = False
+    right_encoder_reversed: bool = False
+    encoders_swapped: bool = False
+    motors_swapped: bool = False
+    left_wheel_scale: float = 1.0
+    right_wheel_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type in (bool, "bool"):
+                if not isinstance(v, bool):
+                    raise ValueError(f"BuildFaults.{f.name} must be True or False, got {v!r}")
+            elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"BuildFaults.{f.name} must be a finite number > 0 "
+                                 f"(true wheel radius / nominal, e.g. 1.03), got {v!r}")
+
+    @property
+    def any(self) -> bool:
+        """True if anything differs from a correctly built robot."""
+        return self != BuildFaults()
+
+    def leads_swapped(self, side: int) -> bool:
+        """The motor of wheel ``side`` (LEFT/RIGHT) has its leads swapped."""
+        return self.right_leads_swapped if side == RIGHT else self.left_leads_swapped
+
+    def encoder_reversed(self, side: int) -> bool:
+        """The encoder of wheel ``side`` has A and B swapped."""
+        return self.right_encoder_reversed if side == RIGHT else self.left_encoder_reversed
+
+    def wheel_scale(self, side: int) -> float:
+        """True radius / nominal of wheel ``side``."""
+        return self.right_wheel_scale if side == RIGHT else self.left_wheel_scale
 
 
 class PtyPort:
@@ -146,10 +210,26 @@ class VirtualBoard:
     firmware's decoder, and the firmware's output goes to the driver -- unless
     ``silent`` is set: then the port stays open and commands still arrive, but
     every line the board writes is dropped (a board that stopped talking).
+
+    ``faults`` (:class:`BuildFaults`, default none) emulates a wrongly built robot:
+    swapped motor leads or channels between the driver and the motors, reversed or
+    swapped encoders between the wheels and the decoder.  The robot's mechanics (which
+    motor and encoder are mounted mirrored) follow the firmware ``config``'s
+    ``invert_*`` flags (core/config.h defaults: the right side), so without faults the
+    firmware's flags are right, as today.
     """
 
     def __init__(self, link: str | os.PathLike | None = None, model_wheels: bool = True,
-                 config: dict[str, int] | None = None) -> None:
+                 config: dict[str, int] | None = None, faults: BuildFaults | None = None) -> None:
+        if faults is not None and not isinstance(faults, BuildFaults):
+            raise ValueError(f"faults must be a BuildFaults, got {type(faults).__name__}")
+        self.faults = faults if faults is not None else BuildFaults()
+        conf = dict(config or {})
+        # +1/-1 per side: how the motor / encoder is mounted (-1: mirrored, as the flags say)
+        self._motor_mount = tuple(-1.0 if conf.get(k, MOUNT_DEFAULTS[k]) else 1.0
+                                  for k in ("invert_left", "invert_right"))
+        self._encoder_mount = tuple(-1 if conf.get(k, MOUNT_DEFAULTS[k]) else 1
+                                    for k in ("invert_left_encoder", "invert_right_encoder"))
         self.fw = FirmwareHost(config)
         self.fw.power_on()
         self.port = PtyPort(link)
@@ -167,12 +247,41 @@ class VirtualBoard:
         return self.port.path
 
     def turn_wheel(self, side: int, dangle: float) -> None:
-        """Turn one wheel by dangle rad (robot-forward positive): encoder edges into the firmware."""
+        """Turn one wheel by dangle rad (robot-forward positive): encoder edges into the firmware
+        (through the encoder wiring faults, if any)."""
         edges = dangle / (2 * math.pi) * EDGES_PER_REV + self._edge_rest[side]
         whole = math.trunc(edges)
         self._edge_rest[side] = edges - whole
         if whole:
-            self.fw.wheel_advance(side, whole)
+            if self.faults.any:
+                self.fw.wheel_advance(*self._encoder_wiring(side, whole))
+            else:
+                self.fw.wheel_advance(side, whole)
+
+    def _encoder_wiring(self, wheel: int, edges: int) -> tuple[int, int]:
+        """(decoder side, edges in that decoder's robot-forward convention) for ``edges``
+        forward edges of ``wheel``'s encoder, through the build faults."""
+        pins = edges * self._encoder_mount[wheel]          # Gray-code steps at the encoder's A/B
+        if self.faults.encoder_reversed(wheel):
+            pins = -pins                                   # A and B swapped
+        decoder = (RIGHT if wheel == LEFT else LEFT) if self.faults.encoders_swapped else wheel
+        return decoder, pins * self._encoder_mount[decoder]   # wheel_advance re-applies the decoder's flag
+
+    def motor_duty(self, wheel: int) -> float:
+        """Signed duty (-1..1, robot-forward) that reaches the motor of ``wheel`` from the
+        driver, through the build faults (the firmware's own wish: ``fw.wheel_duty``)."""
+        if not self.faults.any:
+            return self.fw.wheel_duty(wheel)
+        channel = (RIGHT if wheel == LEFT else LEFT) if self.faults.motors_swapped else wheel
+        bridge = self.fw.wheel_duty(channel) * self._motor_mount[channel]   # polarity at the outputs
+        if self.faults.leads_swapped(wheel):
+            bridge = -bridge
+        return bridge * self._motor_mount[wheel]
+
+    def wheel_travel(self, side: int) -> float:
+        """Distance (m) the modelled wheel ``side`` would have rolled on the floor: its angle
+        x nominal radius x ``wheel_scale`` (the counts only see the angle)."""
+        return self.motors[side].angle * WHEEL_RADIUS * self.faults.wheel_scale(side)
 
     def step(self, dt: float) -> None:
         """Advance the board by ``dt`` s: serial in, firmware, motors, encoders, serial out."""
@@ -183,7 +292,7 @@ class VirtualBoard:
             self.fw.feed(data)
         if self.model_wheels:
             for side in (LEFT, RIGHT):
-                self.turn_wheel(side, self.motors[side].step(self.fw.wheel_duty(side), dt))
+                self.turn_wheel(side, self.motors[side].step(self.motor_duty(side), dt))
         self.fw.advance(max(1, round(dt * 1e6)))
         out = self.fw.read_tx()
         if out and not self.silent:
