@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from chefbot_bringup.odometry import integrate_arc
+
 # A correction outside this range is a set-up mistake, not a calibration: ticks_meter for 2X
 # instead of 4X decoding is a factor 2, a yaw wrapped to +-pi or lengths in cm are worse.
 PLAUSIBLE = (0.8, 1.25)
@@ -126,15 +128,6 @@ def wheel_factors(e_d: float) -> tuple[float, float]:
     return 2.0 / (e_d + 1.0), 2.0 / (1.0 / e_d + 1.0)
 
 
-def _arc(x: float, y: float, theta: float, dl: float, dr: float, b: float) -> tuple[float, float, float]:
-    """The exact arc of odometry.integrate_arc written as chord x direction, which has no
-    cancellation for nearly straight steps (the fit evaluates E_d = 1 +- 1e-8)."""
-    half = 0.5 * (dr - dl) / b
-    d = 0.5 * (dl + dr)
-    chord = d * math.sin(half) / half if half != 0.0 else d
-    return x + chord * math.cos(theta + half), y + chord * math.sin(theta + half), theta + 2.0 * half
-
-
 def square_end_error(side_m: float, base_width_m: float, e_d: float, e_b: float,
                      clockwise: bool) -> tuple[float, float]:
     """End error (m, m) of one UMBmark run that the model predicts: where the robot really stops,
@@ -151,8 +144,8 @@ def square_end_error(side_m: float, base_width_m: float, e_d: float, e_b: float,
     wheel_turn = 0.5 * (-QUARTER if clockwise else QUARTER) * base_width_m   # right wheel, per corner
     pose = (0.0, 0.0, 0.0)
     for _ in range(4):
-        pose = _arc(*pose, c_l * side_m, c_r * side_m, b_true)
-        pose = _arc(*pose, -c_l * wheel_turn, c_r * wheel_turn, b_true)
+        pose = integrate_arc(*pose, c_l * side_m, c_r * side_m, b_true)
+        pose = integrate_arc(*pose, -c_l * wheel_turn, c_r * wheel_turn, b_true)
     return pose[0], pose[1]
 
 
