@@ -1,4 +1,4 @@
-"""The robot's drive constants, written in four places, agree with each other.
+"""The robot's drive constants, written in several places, agree with each other.
 
 Derived from the URDF (wheel radius and separation) and the motor's datasheet
 figures (Pololu 37D: 64 counts per motor revolution with 4X decoding, 131.25:1
@@ -77,3 +77,26 @@ def test_firmware_comment_states_the_same_counts() -> None:
         m = re.search(rf"{mode} = {factor},\s*//.*?(\d+) counts per (?:wheel )?revolution", text)
         assert m, f"config.h: no counts-per-revolution comment for {mode}"
         assert int(m.group(1)) == MOTOR_COUNTS_PER_REV_4X * GEAR_RATIO * factor / 4, mode
+
+
+def firmware_inversions() -> dict[str, bool]:
+    """The default ``invert_*`` flags of config.h (which motor and encoder are mounted mirrored)."""
+    text = (ROOT / "firmware" / "core" / "config.h").read_text()
+    flags = dict(re.findall(r"bool\s+(invert_\w+)\s*=\s*(true|false)\s*;", text))
+    assert flags, "firmware/core/config.h: no invert_* defaults found"
+    return {k: v == "true" for k, v in flags.items()}
+
+
+def test_bringup_check_and_emulator_expect_this_robot(urdf: str, diff_drive: dict) -> None:
+    """The bring-up diagnosis's expectations and the emulator's mounting copy diff_drive.yaml, the
+    URDF and config.h (neither may import the other: the diagnosis runs on the real robot)."""
+    from chefbot_bringup import bringup_check
+
+    geo = wheel_geometry(parse_urdf(urdf))
+    assert bringup_check.TICKS_METER == diff_drive["ticks_meter"]
+    assert bringup_check.MAX_WHEEL_SPEED == diff_drive["max_wheel_speed"]
+    assert bringup_check.WHEEL_DIAMETER == pytest.approx(2 * geo.radius, abs=1e-9)
+    assert virtual_board.WHEEL_RADIUS == pytest.approx(geo.radius, abs=1e-9)
+    assert bringup_check.COUNTS_PER_REV_1X * firmware_decoding() == counts_per_wheel_rev()
+    assert bringup_check.INVERT_DEFAULTS == firmware_inversions()
+    assert virtual_board.MOUNT_DEFAULTS == firmware_inversions()
