@@ -117,35 +117,25 @@ def test_expected_counts_match_the_emulator_motor():
 
 
 def _firmware_runs(config: dict | None) -> list[MotorRun]:
-    """Each motor alone through our firmware core (host library) and the emulator's motor model."""
-    from chefbot_firmware.host import LEFT, RIGHT, FirmwareHost
-    from chefbot_firmware.virtual_board import EDGES_PER_REV, MotorModel
-    fw = FirmwareHost(config)
-    fw.power_on()
+    """Each motor alone through our firmware core (host library) on the board emulator, whose motor
+    model turns the wheels and feeds their encoder edges back (VirtualBoard.step)."""
+    from chefbot_firmware.host import LEFT, RIGHT
+    from chefbot_firmware.virtual_board import VirtualBoard
     runs = []
-    try:
+    with VirtualBoard(config=config) as b:
         for ch in ("left", "right"):
             for sign in (1, -1):
-                motors, rest = (MotorModel(), MotorModel()), [0.0, 0.0]
-                start = (fw.encoder_count(LEFT), fw.encoder_count(RIGHT))
+                start = (b.fw.encoder_count(LEFT), b.fw.encoder_count(RIGHT))
                 cmd = sign * 300
                 line = f"s {cmd if ch == 'left' else 0} {cmd if ch == 'right' else 0}\n".encode()
                 for k in range(250):          # 10 ms steps: 2 s commanded (fed every 0.1 s), 0.5 s stop
                     if k < 200 and k % 10 == 0:
-                        fw.feed(line)
+                        b.fw.feed(line)
                     if k == 200:
-                        fw.feed(b"s 0 0\n")
-                    for side in (LEFT, RIGHT):
-                        edges = motors[side].step(fw.wheel_duty(side), 0.01) / (2 * math.pi) * EDGES_PER_REV
-                        edges += rest[side]
-                        rest[side] = edges - math.trunc(edges)
-                        if math.trunc(edges):
-                            fw.wheel_advance(side, math.trunc(edges))
-                    fw.advance(10_000)
-                runs.append(MotorRun(ch, cmd / 1023, SECONDS, fw.encoder_count(LEFT) - start[0],
-                                     fw.encoder_count(RIGHT) - start[1]))
-    finally:
-        fw.close()
+                        b.fw.feed(b"s 0 0\n")
+                    b.step(0.01)
+                runs.append(MotorRun(ch, cmd / 1023, SECONDS, b.fw.encoder_count(LEFT) - start[0],
+                                     b.fw.encoder_count(RIGHT) - start[1]))
     return runs
 
 
