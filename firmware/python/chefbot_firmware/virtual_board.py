@@ -91,11 +91,6 @@ class BuildFaults:
                 raise ValueError(f"BuildFaults.{f.name} must be a finite number > 0 "
                                  f"(true wheel radius / nominal, e.g. 1.03), got {v!r}")
 
-    @property
-    def any(self) -> bool:
-        """True if anything differs from a correctly built robot."""
-        return self != BuildFaults()
-
     def leads_swapped(self, side: int) -> bool:
         """The motor of wheel ``side`` (LEFT/RIGHT) has its leads swapped."""
         return self.right_leads_swapped if side == RIGHT else self.left_leads_swapped
@@ -253,10 +248,7 @@ class VirtualBoard:
         whole = math.trunc(edges)
         self._edge_rest[side] = edges - whole
         if whole:
-            if self.faults.any:
-                self.fw.wheel_advance(*self._encoder_wiring(side, whole))
-            else:
-                self.fw.wheel_advance(side, whole)
+            self.fw.wheel_advance(*self._encoder_wiring(side, whole))
 
     def _encoder_wiring(self, wheel: int, edges: int) -> tuple[int, int]:
         """(decoder side, edges in that decoder's robot-forward convention) for ``edges``
@@ -270,8 +262,6 @@ class VirtualBoard:
     def motor_duty(self, wheel: int) -> float:
         """Signed duty (-1..1, robot-forward) that reaches the motor of ``wheel`` from the
         driver, through the build faults (the firmware's own wish: ``fw.wheel_duty``)."""
-        if not self.faults.any:
-            return self.fw.wheel_duty(wheel)
         channel = (RIGHT if wheel == LEFT else LEFT) if self.faults.motors_swapped else wheel
         bridge = self.fw.wheel_duty(channel) * self._motor_mount[channel]   # polarity at the outputs
         if self.faults.leads_swapped(wheel):
