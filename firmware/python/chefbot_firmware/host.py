@@ -131,8 +131,8 @@ class FirmwareHost:
 
     def __init__(self, config: dict[str, int] | None = None) -> None:
         self._lib = _load()
-        self._h = self._lib.cfw_create()
-        if not self._h:
+        self._handle = self._lib.cfw_create()
+        if not self._handle:
             raise MemoryError("cfw_create failed")
         if config:
             for key, value in config.items():
@@ -140,11 +140,18 @@ class FirmwareHost:
             self.power_on()
 
     # ------------------------------------------------------------ lifecycle
+    @property
+    def _h(self):
+        """The C handle; using a closed board raises instead of passing NULL to C (a segfault)."""
+        if not getattr(self, "_handle", None):
+            raise ValueError("the firmware board is closed")
+        return self._handle
+
     def close(self) -> None:
         """Destroy the firmware instance (idempotent)."""
-        if self._h:
-            self._lib.cfw_destroy(self._h)
-            self._h = None
+        if getattr(self, "_handle", None):
+            self._lib.cfw_destroy(self._handle)
+            self._handle = None
 
     def __enter__(self) -> FirmwareHost:
         return self

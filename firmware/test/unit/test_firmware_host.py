@@ -157,6 +157,15 @@ def test_configuration_and_counters():
             fw.configure("nope", 1)
 
 
+def test_a_closed_board_raises_instead_of_crashing():
+    b = FirmwareHost()
+    b.close()
+    b.close()                                   # idempotent
+    for call in (lambda: b.command(LEFT), lambda: b.advance(1000), lambda: b.feed(b"s 0 0\n"), b.read_tx):
+        with pytest.raises(ValueError, match="closed"):
+            call()
+
+
 def test_rx_vectors_through_the_library():
     """Every PC->board vector, fed to the emulated board: the accepted
     commands and the error counters match the golden events."""
