@@ -18,6 +18,7 @@ import math
 import os
 import pty
 import tty
+from collections.abc import Iterable
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -91,6 +92,34 @@ class BuildFaults:
                 raise ValueError(f"BuildFaults.{f.name} must be a finite number > 0 "
                                  f"(true wheel radius / nominal, e.g. 1.03), got {v!r}")
 
+    @classmethod
+    def from_names(cls, names: Iterable[str] = (),
+                   wheel_scale: tuple[float, float] | None = None) -> BuildFaults:
+        """The faults named in ``names`` (any of :data:`FAULT_NAMES`; repeats are harmless) and
+        ``wheel_scale`` = (left, right) true radius / nominal (None: 1.0 both), as the
+        ``virtual_launchpad --fault NAME --wheel-scale LEFT RIGHT`` options give them.
+
+        Raises ValueError naming the valid faults for an unknown name, or for a scale that is
+        not a finite number > 0."""
+        names = list(names)
+        unknown = [n for n in names if n not in FAULT_NAMES]
+        if unknown:
+            raise ValueError(f"unknown build fault {unknown[0]!r}; valid: {', '.join(FAULT_NAMES)}")
+        kw: dict[str, bool | float] = {n: True for n in names}
+        if wheel_scale is not None:
+            if len(wheel_scale) != 2:
+                raise ValueError(f"wheel scale must be two numbers (left right), got {wheel_scale!r}")
+            kw["left_wheel_scale"], kw["right_wheel_scale"] = wheel_scale
+        return cls(**kw)
+
+    def describe(self) -> str:
+        """One line for a log: the faults that are on (in :data:`FAULT_NAMES` order) and the wheel
+        scales when not 1, or ``none (a correctly built robot)``."""
+        parts = [n for n in FAULT_NAMES if getattr(self, n)]
+        if (self.left_wheel_scale, self.right_wheel_scale) != (1.0, 1.0):
+            parts.append(f"wheel scale left {self.left_wheel_scale:g} right {self.right_wheel_scale:g}")
+        return ", ".join(parts) if parts else "none (a correctly built robot)"
+
     def leads_swapped(self, side: int) -> bool:
         """The motor of wheel ``side`` (LEFT/RIGHT) has its leads swapped."""
         return self.right_leads_swapped if side == RIGHT else self.left_leads_swapped
@@ -102,6 +131,10 @@ class BuildFaults:
     def wheel_scale(self, side: int) -> float:
         """True radius / nominal of wheel ``side``."""
         return self.right_wheel_scale if side == RIGHT else self.left_wheel_scale
+
+
+# The on/off faults, by name (the ``--fault`` choices of ``virtual_launchpad``), in field order.
+FAULT_NAMES: tuple[str, ...] = tuple(f.name for f in fields(BuildFaults) if f.type in (bool, "bool"))
 
 
 class PtyPort:
