@@ -1,0 +1,204 @@
+"""The guided bring-up check (bringup_procedure) against the board emulator: our firmware core on a
+real pseudo-terminal, stepped in simulated time, built right and built wrong (virtual_board.BuildFaults).
+
+The link opens the pty's device as a driver would and writes/reads raw bytes; only the clock is
+simulated (the board advances while the check waits for bytes), so a run takes ~1 s of wall time.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import pytest
+
+from chefbot_bringup.bringup_procedure import BringupCheck, CheckOptions, Report
+
+vb = pytest.importorskip("chefbot_firmware.virtual_board")
+try:
+    from chefbot_firmware.host import LEFT, RIGHT, library_path
+    library_path()
+except Exception as e:  # noqa: BLE001 - library not built: skip the module
+    pytest.skip(f"firmware host library: {e}", allow_module_level=True)
+
+BuildFaults, VirtualBoard = vb.BuildFaults, vb.VirtualBoard
+SIDE = {"left": LEFT, "right": RIGHT}
+FAST = CheckOptions(board_seconds=1.5, run_seconds=1.0, pid_seconds=1.5)
+
+
+class SimLink:
+    """The pty of a VirtualBoard opened like a serial port; time moves only while reading."""
+
+    def __init__(self, board: VirtualBoard, dt: float = 0.005, fail_after_writes: int | None = None) -> None:
+        self.board, self.dt, self.t = board, dt, 0.0
+        self.fd = os.open(board.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        self.writes = []
+        self.fail_after_writes = fail_after_writes
+
+    def now(self) -> float:
+        return self.t
+
+    def write(self, data: bytes) -> None:
+        if self.fail_after_writes is not None and len(self.writes) >= self.fail_after_writes:
+            raise OSError(5, "Input/output error (unplugged)")
+        self.writes.append(data)
+        os.write(self.fd, data)
+
+    def read(self, timeout: float) -> bytes:
+        end = self.t + max(timeout, self.dt)
+        out = b""
+        while not out and self.t < end - 1e-9:
+            self.board.step(self.dt)
+            self.t += self.dt
+            try:
+                out = os.read(self.fd, 4096)
+            except BlockingIOError:
+                pass
+        return out
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+class ScriptedUi:
+    """Answers every question at once; a question about a wheel turns it one turn forward first
+    (the builder's hand). ``interrupt_on`` raises KeyboardInterrupt when a line containing it is said."""
+
+    def __init__(self, board: VirtualBoard | None = None, answer: bool = True, interrupt_on: str = "") -> None:
+        self.board, self.answer_questions, self.interrupt_on = board, answer, interrupt_on
+        self.lines: list[str] = []
+        self.questions: list[str] = []
+        self._pending: str | None = None
+
+    def say(self, text: str) -> None:
+        self.lines.append(text)
+        if self.interrupt_on and self.interrupt_on in text:
+            raise KeyboardInterrupt
+
+    def ask(self, text: str) -> None:
+        self.questions.append(text)
+        if not self.answer_questions:
+            return
+        for side in ("LEFT", "RIGHT"):
+            if f"the {side} wheel" in text and self.board is not None:
+                for _ in range(100):
+                    self.board.turn_wheel(SIDE[side.lower()], 2 * math.pi / 100)
+        self._pending = ""
+
+    def answer(self) -> str | None:
+        a, self._pending = self._pending, None
+        return a
+
+
+def run_check(faults: BuildFaults | None = None, options: CheckOptions = FAST,
+              **kw) -> tuple[Report, ScriptedUi, SimLink, tuple[float, float, float, float]]:
+    """Run the check; also returns the board's applied commands and wheel duties at the end."""
+    with VirtualBoard(faults=faults) as board:
+        link = SimLink(board, fail_after_writes=kw.pop("fail_after_writes", None))
+        ui = ScriptedUi(board, **kw)
+        try:
+            rep = BringupCheck(link, ui, options).run()
+        finally:
+            link.close()
+        board.step(0.01)
+        return rep, ui, link, (board.fw.command(LEFT), board.fw.command(RIGHT),
+                               board.fw.wheel_duty(LEFT), board.fw.wheel_duty(RIGHT))
+
+
+def found(rep: Report) -> set[tuple[str, str | None]]:
+    return {(v.code, v.side) for s in rep.steps for v in s.verdicts if not v.ok}
+
+
+def test_correct_robot_passes_every_step_and_ends_stopped():
+    rep, ui, link, final = run_check()
+    assert rep.ok, ui.lines
+    assert [s.name for s in rep.steps] == ["board", "motors", "pid"]
+    assert rep.motors_stopped is True
+    board_data = rep.steps[0].data
+    assert board_data["hello"][0] == "1" and board_data["hello"][1].startswith("chefbot_fw-")
+    assert board_data["status_rate_hz"] == pytest.approx(30, rel=0.1)
+    runs = rep.steps[1].data["runs"]
+    assert [r["side"] for r in runs] == ["left", "left", "right", "right"]
+    # 0.3 duty x 80 RPM x 1 s x 8400 counts/turn = 3360 counts (+- the start and the coast)
+    assert runs[0]["left_counts"] == pytest.approx(3360, rel=0.1) and abs(runs[0]["right_counts"]) < 20
+    assert runs[1]["left_counts"] == pytest.approx(-3360, rel=0.1)
+    for s in ("left", "right"):
+        assert rep.steps[2].data[s]["rise_time"] < 0.5
+    assert b"r\r" in link.writes[0]
+    assert link.writes[-1].startswith(b"s 0 0")            # the last word to the board: stop
+    assert final == (0, 0, 0, 0)
+    assert rep.to_dict()["faults"] == []
+
+
+CASES = [
+    # without hand turns a reversed motor and a reversed encoder look alike
+    (BuildFaults(left_leads_swapped=True), False, {("direction_reversed", "left")}),
+    (BuildFaults(right_encoder_reversed=True), False, {("direction_reversed", "right")}),
+    (BuildFaults(motors_swapped=True), False, {("left_right_swapped", None)}),
+    # with them, each is named
+    (BuildFaults(left_leads_swapped=True), True, {("motor_reversed", "left")}),
+    (BuildFaults(right_encoder_reversed=True), True, {("encoder_reversed", "right")}),
+    (BuildFaults(encoders_swapped=True), True, {("encoders_swapped", None)}),
+    (BuildFaults(motors_swapped=True), True, {("motors_swapped", None)}),
+    (BuildFaults(left_leads_swapped=True, right_encoder_reversed=True), True,
+     {("motor_reversed", "left"), ("encoder_reversed", "right")}),
+]
+
+
+@pytest.mark.parametrize("faults,hand,expected", CASES)
+def test_wiring_faults_are_named_and_the_pid_step_is_skipped(faults, hand, expected):
+    rep, ui, _link, final = run_check(faults, CheckOptions(board_seconds=1.0, run_seconds=1.0, hand_turns=hand))
+    assert not rep.ok
+    assert found(rep) == expected, ui.lines
+    assert [s.name for s in rep.steps] == ["board", "motors"]
+    assert any("pid: skipped" in line for line in ui.lines)
+    assert len(ui.questions) == (2 if hand else 0)
+    assert rep.motors_stopped is True
+    assert final == (0, 0, 0, 0)
+
+
+def test_silent_board_aborts_after_the_board_step():
+    with VirtualBoard() as board:
+        board.silent = True
+        link = SimLink(board)
+        ui = ScriptedUi(board)
+        rep = BringupCheck(link, ui, CheckOptions(board_seconds=0.5, hello_timeout=0.5)).run()
+        link.close()
+    assert "no status lines" in rep.aborted
+    assert {"no_hello", "no_status"} <= {c for c, _ in found(rep)}
+    assert rep.motors_stopped is False                       # nobody confirmed it
+    assert all(not w.startswith(b"s ") or w.startswith(b"s 0 0") for w in link.writes)   # never drove
+
+
+def test_unplugged_mid_check_aborts_without_a_traceback():
+    rep, ui, link, _b = run_check(fail_after_writes=80)
+    assert "cannot write to the board" in rep.aborted
+    assert not rep.ok and rep.motors_stopped is None
+    assert any("watchdog" in line for line in ui.lines)
+
+
+def test_interrupt_stops_the_motors_and_passes_on():
+    with VirtualBoard() as board:
+        link = SimLink(board)
+        ui = ScriptedUi(board, interrupt_on="left motor backward")
+        with pytest.raises(KeyboardInterrupt):
+            BringupCheck(link, ui, FAST).run()
+        link.close()
+        board.step(0.01)
+        assert link.writes[-1].startswith(b"s 0 0")
+        assert board.fw.command(LEFT) == 0 and board.fw.wheel_duty(LEFT) == 0.0
+
+
+def test_unanswered_hand_turn_is_skipped_after_the_timeout():
+    rep, ui, _link, _b = run_check(options=CheckOptions(board_seconds=1.0, run_seconds=1.0, hand_turns=True,
+                                                        answer_timeout=0.5), answer=False)
+    assert rep.ok, ui.lines                       # the powered runs alone show a correct robot
+    assert rep.steps[1].data["hand_turns"] == []
+    assert sum("hand turn is skipped" in line for line in ui.lines) == 2
+
+
+@pytest.mark.parametrize("kw,match", [({"duty": 0.9}, "duty"), ({"run_seconds": 0}, "run_seconds"),
+                                      ({"command_period": 0.5}, "watchdog"), ({"pid_target": -0.1}, "pid_target"),
+                                      ({"board_seconds": float("nan")}, "board_seconds")])
+def test_bad_options_are_refused(kw, match):
+    with pytest.raises(ValueError, match=match):
+        CheckOptions(**kw)
