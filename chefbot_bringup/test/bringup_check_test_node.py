@@ -30,8 +30,10 @@ from procs import group_tree, kill_group, stop_tracked
 class RunningBoard:
     """A VirtualBoard stepped in real time on a thread until closed."""
 
-    def __init__(self, link: str, faults: BuildFaults | None = None) -> None:
+    def __init__(self, link: str, faults: BuildFaults | None = None, motor_strength: float = 1.0) -> None:
         self.board = VirtualBoard(link, faults=faults)
+        for m in self.board.motors:
+            m.free_speed *= motor_strength
         self.lock = threading.Lock()
         self.max_duty = 0.0          # largest |duty| the firmware applied (any wheel)
         self._stop = threading.Event()
@@ -63,13 +65,14 @@ class RunningBoard:
         self.board.close()
 
 
-def run_launch(port: str, report: str, timeout: float, interrupt_when=None) -> tuple[int | None, str]:
+def run_launch(port: str, report: str, timeout: float, interrupt_when=None,
+               extra: tuple[str, ...] = ()) -> tuple[int | None, str]:
     """roslaunch bringup_check.launch (its exit code is roslaunch's, 0 however the check ended); with
     ``interrupt_when`` (a predicate on the output so far) Ctrl-C the launch as soon as it holds.
     Returns (exit code or None if it had to be killed, output)."""
     out = tempfile.TemporaryFile()
     proc = subprocess.Popen(["roslaunch", "--disable-title", "chefbot_bringup", "bringup_check.launch",
-                             f"port:={port}", "interactive:=false", f"report:={report}"],
+                             f"port:={port}", "interactive:=false", f"report:={report}", *extra],
                             stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     tracked = group_tree(proc.pid)
     deadline = time.monotonic() + timeout
@@ -104,8 +107,9 @@ class TestBringupCheck(unittest.TestCase):
             self.board.close()
         self.tmp.cleanup()
 
-    def check(self, faults: BuildFaults | None = None, timeout: float = 90.0, **kw) -> tuple[int | None, str, dict]:
-        self.board = RunningBoard(self.link, faults)
+    def check(self, faults: BuildFaults | None = None, timeout: float = 90.0, motor_strength: float = 1.0,
+              **kw) -> tuple[int | None, str, dict]:
+        self.board = RunningBoard(self.link, faults, motor_strength)
         rc, text = run_launch(self.link, self.report, timeout, **kw)
         self.assertIsNone(self.board.error, f"the board emulator failed: {self.board.error!r}")
         # the motors: stopped when the check ended (the firmware's own applied duty)
@@ -146,7 +150,24 @@ class TestBringupCheck(unittest.TestCase):
         rc, text, rep = self.check(interrupt_when=lambda t: "left motor forward" in t, timeout=60.0)
         self.assertIsNotNone(rc, f"the launch did not end after Ctrl-C:\n{text[-2000:]}")
         self.assertNotIn("Traceback", text, text[-2000:])
-        self.assertIn("interrupted: motors stopped", text, text[-2000:])
+        self.assertIn("motors stopped (the board confirms 0/0)\ninterrupted", text, text[-2000:])
+
+    def test_6_autotune_writes_better_gains_into_the_calibration_file(self) -> None:
+        calib = os.path.join(self.tmp.name, "calibration.yaml")
+        Path(calib).write_text("ticks_meter: 29950  # from calibrate_odometry\n")
+        rc, text, rep = self.check(motor_strength=0.8, timeout=120.0,     # a motor 20 % weaker than configured
+                                   extra=("autotune:=true", "write_gains:=true", f"calibration:={calib}"))
+        self.assertIsNotNone(rc, text[-3000:])
+        steps = {s["name"]: s for s in rep["steps"]}
+        self.assertFalse(steps["pid"]["ok"], "today's gains should not reach the target on the weaker motor")
+        self.assertTrue(steps["pid_autotuned"]["ok"], text[-3000:])
+        self.assertTrue(steps["autotune"]["data"]["better"], text[-3000:])
+        data = yaml.safe_load(Path(calib).read_text())
+        self.assertEqual(data["ticks_meter"], 29950)                      # kept
+        self.assertEqual(data["lwheel_pid"], data["rwheel_pid"])
+        self.assertEqual(data["lwheel_pid"]["Kp"], steps["autotune"]["data"]["proposed"]["Kp"])
+        self.assertGreater(data["lwheel_pid"]["Ki"], 1000.0)
+        self.assertIn(f"calibration:={calib}", text)
 
     def test_5_no_board_ends_with_the_reason(self) -> None:
         rc, text = run_launch(os.path.join(self.tmp.name, "no_such_port"), self.report, 60.0)

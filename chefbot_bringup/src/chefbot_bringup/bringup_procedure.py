@@ -33,10 +33,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
+import numpy as np
+import yaml
+
 from chefbot_bringup import bringup_check as bc
 from chefbot_bringup import launchpad_protocol as proto
+from chefbot_bringup import pid_autotune
 from chefbot_bringup.launchpad import LineAssembler, wrap_int32
-from chefbot_bringup.wheel_pid import PidConfig, WheelController
+from chefbot_bringup.wheel_pid import PidConfig, WheelController, WheelVelocityEstimator
 
 COMMAND_MAX = proto.COMMAND_MAX
 
@@ -81,6 +85,7 @@ class CheckOptions:
     pid_step: bool = True           # step both wheels' speed loops (only when the wiring is right)
     pid_target: float = 0.2         # m/s: the speed loops' step target
     pid_seconds: float = 2.0        # s: length of the step record
+    autotune: bool = False          # fit each wheel's forward run, propose PI gains, step the loops with them
     answer_timeout: float = 300.0   # s: wait for the user's Enter, then the step is skipped
     command_period: float = 0.05    # s: between commands to the board (its watchdog stops the motors at 0.5 s)
 
@@ -264,6 +269,42 @@ class Board:
         return self.pump(wait, stopped)
 
 
+@dataclass(frozen=True)
+class OpenLoop:
+    """One motor run's record while commanded: the sample before, the command's delay after it, the command."""
+
+    start: Sample
+    delay: float              # s from the start sample's arrival to the command going out
+    command: float            # cmd units
+    samples: list[Sample]     # the start sample and every encoder line while commanded
+
+    def speed_record(self, side: str, pid: PidConfig) -> tuple[list[float], list[float]]:
+        """(t from the command, wheel speed) through the loop's own estimator, on the board's clock."""
+        est = WheelVelocityEstimator(pid)
+        clock = [s.board_t if s.board_t is not None else s.t for s in self.samples]
+        t_cmd = clock[0] + self.delay
+        first = self.samples[0]
+        rest_history(est.add_reading, first.left if side == "left" else first.right, clock[0], pid)
+        t: list[float] = []
+        v: list[float] = []
+        for smp, c in zip(self.samples[1:], clock[1:], strict=True):
+            est.add_reading(smp.left if side == "left" else smp.right, c)
+            if c >= t_cmd and (not t or c - t_cmd > t[-1]):
+                t.append(c - t_cmd)
+                v.append(est.velocity(c))
+        if t and t[0] > 0:
+            t.insert(0, 0.0)
+            v.insert(0, 0.0)
+        return t, v
+
+
+def rest_history(add_reading: Callable[[int, float], None], count: int, t: float, pid: PidConfig) -> None:
+    """Feed a speed estimator the readings of a wheel at rest up to ``t``: a full rolling window, as
+    ``pid_velocity``'s estimator has when a step comes after a pause (its lag at the step's start)."""
+    for k in range(int(pid.rolling_pts), -1, -1):
+        add_reading(count, t - k / pid.rate)
+
+
 def count_delta(a: int, b: int) -> int:
     """b - a of two int32 counters, across a wrap."""
     return wrap_int32(b - a)
@@ -280,6 +321,8 @@ class BringupCheck:
         self.pid = pid or PidConfig(ticks_meter=self.expect.ticks_meter, max_speed=self.expect.max_wheel_speed)
         self.board = Board(link, self.opt.command_period)
         self.report = Report()
+        self.open_loop: dict[tuple[str, bool], OpenLoop] = {}   # (side, forward) -> the run's record
+        self.proposed: pid_autotune.Gains | None = None         # gains the autotune found better, if any
 
     # ---------------------------------------------------------------- the whole check
     def run(self) -> Report:
@@ -289,16 +332,16 @@ class BringupCheck:
         except LinkError as exc:
             self.report.aborted = str(exc)
             self.ui.say(f"ABORTED: {exc}. The firmware's watchdog stops the motors 0.5 s after the last command.")
-        finally:
+        finally:            # also on KeyboardInterrupt, which then passes on
             try:
                 self.report.motors_stopped = self.board.stop()
             except LinkError:
                 self.report.motors_stopped = None
-        if self.report.motors_stopped:
-            self.ui.say("motors stopped (the board confirms 0/0)")
-        elif self.report.motors_stopped is False:
-            self.ui.say("the board did not confirm the stop; its watchdog stops the motors 0.5 s after the "
-                        "last command")
+            if self.report.motors_stopped:
+                self.ui.say("motors stopped (the board confirms 0/0)")
+            elif self.report.motors_stopped is False:
+                self.ui.say("the board did not confirm the stop; its watchdog stops the motors 0.5 s after the "
+                            "last command")
         return self.report
 
     def _run_steps(self) -> None:
@@ -312,7 +355,9 @@ class BringupCheck:
         if not self.opt.pid_step:
             return
         if motors.ok:
-            self.pid_step()
+            current = self.pid_step()
+            if self.opt.autotune:
+                self.autotune_step(current)
         else:
             self.ui.say("pid: skipped until the wiring faults above are fixed (a reversed wheel would run away)")
 
@@ -390,10 +435,13 @@ class BringupCheck:
         b.command(value if side == "left" else 0.0, value if side == "right" else 0.0)
         b.pump(self.opt.run_seconds)
         seconds = b.link.now() - t0
+        n_commanded = len(samples)
         self._wait_still()
         b.on_sample = None
         end = b.counts
         run = bc.MotorRun(side, duty, seconds, count_delta(start.left, end.left), count_delta(start.right, end.right))
+        # the commanded part, for the autotune's model fit; the command went out t0 - start.t after the start sample
+        self.open_loop[(side, duty > 0)] = OpenLoop(start, t0 - start.t, value, samples[:n_commanded])
         return run, samples
 
     def hand_turn(self, side: str) -> bc.HandTurn | None:
@@ -471,7 +519,7 @@ class BringupCheck:
         if b.counts is not None:
             t0[0] = clock(b.counts)
             for s in bc.SIDES:
-                ctrl[s].add_reading(b.counts.left if s == "left" else b.counts.right, t0[0])
+                rest_history(ctrl[s].add_reading, b.counts.left if s == "left" else b.counts.right, t0[0], pid)
         b.on_sample = on_sample
         try:
             b.pump(self.opt.pid_seconds)
@@ -482,9 +530,11 @@ class BringupCheck:
 
     def pid_step(self, pid: PidConfig | None = None, name: str = "pid") -> StepReport:
         pid = pid or self.pid
-        self.ui.say(f"3/3 pid: both wheels' speed loops (Kp {pid.kp:g}, Ki {pid.ki:g}, Kd {pid.kd:g}) step to "
+        title = "3/3 pid" if name == "pid" else "autotune"
+        self.ui.say(f"{title}: both wheels' speed loops (Kp {pid.kp:.0f}, Ki {pid.ki:.0f}, Kd {pid.kd:.0f}) step to "
                     f"{self.opt.pid_target:.2f} m/s for {self.opt.pid_seconds:.1f} s")
         rec = self.step_record(pid)
+        self.last_steps = rec
         verdicts: list[bc.Verdict] = []
         data: dict = {"gains": {"Kp": pid.kp, "Ki": pid.ki, "Kd": pid.kd}, "target": self.opt.pid_target}
         for s in bc.SIDES:
@@ -499,3 +549,78 @@ class BringupCheck:
                        "overshoot_pct": round(res.overshoot_pct, 1),
                        "steady_state_error": round(res.steady_state_error, 4), "oscillations": res.oscillations}
         return self._show(StepReport(name, verdicts, data))
+
+    # ---------------------------------------------------------------- 3b. autotune (optional)
+    def autotune_step(self, current: StepReport) -> StepReport:
+        """Fit each wheel's forward run (FOPDT), propose PI gains for the mean model, step the loops
+        with them and compare with the current gains' step (pid_autotune)."""
+        self.ui.say("autotune: fitting each wheel's forward run, proposing PI gains")
+        current_steps = self.last_steps
+        models: dict[str, pid_autotune.Fopdt] = {}
+        verdicts: list[bc.Verdict] = []
+        for s in bc.SIDES:
+            rec = self.open_loop.get((s, True))
+            try:
+                if rec is None:
+                    raise ValueError("no forward run recorded")
+                t, v = rec.speed_record(s, self.pid)
+                models[s] = pid_autotune.fit_fopdt(t, v, rec.command)
+            except ValueError as exc:
+                verdicts.append(bc.Verdict(False, "autotune_fit", f"{s} wheel: no model from its run: {exc}",
+                                           "keep the current gains; look at the run's counts", s))
+        data: dict = {"models": {s: {"gain_per_full_command": round(m.gain * COMMAND_MAX, 4),
+                                     "tau": round(m.tau, 4), "dead_time": round(m.dead_time, 4),
+                                     "rmse": round(m.rmse, 5)} for s, m in models.items()}}
+        if len(models) < 2:
+            return self._show(StepReport("autotune", verdicts, data))
+        mean = pid_autotune.Fopdt(*(sum(getattr(m, f) for m in models.values()) / 2
+                                    for f in ("gain", "tau", "dead_time", "rmse")))
+        gains = pid_autotune.propose_gains(mean, self.pid, self.opt.pid_target)
+        data["proposed"] = {k: round(v, 1) for k, v in gains.to_params().items()}
+        tuned = self.pid_step(replace(self.pid, kp=gains.kp, ki=gains.ki, kd=gains.kd), name="pid_autotuned")
+        better = []
+        for s in bc.SIDES:
+            (tc, vc), (tn, vn) = current_steps[s], self.last_steps[s]
+            if len(tc) < 5 or len(tn) < 5:
+                continue
+            cmp = pid_autotune.compare_steps(tc, self.opt.pid_target, vc, np.interp(tc, tn, vn))
+            better.append(cmp.better and tuned.ok)
+            data[s] = {"iae_current": round(cmp.current.iae, 4), "iae_proposed": round(cmp.proposed.iae, 4),
+                       "overshoot_current_pct": round(cmp.current.overshoot_pct, 1),
+                       "overshoot_proposed_pct": round(cmp.proposed.overshoot_pct, 1)}
+        g = ", ".join(f"{k} {v:.0f}" for k, v in gains.to_params().items() if k != "Kd")
+        if len(better) == 2 and all(better):
+            self.proposed = gains
+            verdicts.append(bc.Verdict(True, "autotune_better",
+                                       f"autotuned gains ({g}) step better than the current ones on both wheels "
+                                       f"(IAE {data['left']['iae_current']:.3f} -> {data['left']['iae_proposed']:.3f} "
+                                       f"left, {data['right']['iae_current']:.3f} -> "
+                                       f"{data['right']['iae_proposed']:.3f} right)",
+                                       "put them in lwheel_pid/rwheel_pid (write_gains, or the calibration file)"))
+        else:
+            verdicts.append(bc.Verdict(True, "autotune_keep",
+                                       f"autotuned gains ({g}) are not better on both wheels: keep the current ones"))
+        data["better"] = self.proposed is not None
+        return self._show(StepReport("autotune", verdicts, data))
+
+
+def merge_gains(existing: str | None, gains: pid_autotune.Gains) -> str:
+    """The calibration YAML ``existing`` (None: no file yet) with ``lwheel_pid``/``rwheel_pid`` Kp, Ki, Kd
+    set to ``gains``; every other key kept. Raises ValueError if ``existing`` is not a YAML mapping
+    (a corrupt file is not overwritten)."""
+    data = {}
+    if existing is not None and existing.strip():
+        try:
+            data = yaml.safe_load(existing)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"not valid YAML ({exc}); fix or remove it") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"not a YAML mapping but a {type(data).__name__}; fix or remove it")
+    for wheel in ("lwheel_pid", "rwheel_pid"):
+        section = data.get(wheel)
+        if section is None:
+            section = data[wheel] = {}
+        if not isinstance(section, dict):
+            raise ValueError(f"its {wheel} is not a mapping; fix or remove it")
+        section.update({k: round(v, 1) for k, v in gains.to_params().items()})
+    return yaml.safe_dump(data, sort_keys=False)

@@ -10,8 +10,10 @@ import math
 import os
 
 import pytest
+import yaml
 
-from chefbot_bringup.bringup_procedure import BringupCheck, CheckOptions, Report
+from chefbot_bringup.bringup_procedure import BringupCheck, CheckOptions, Report, merge_gains
+from chefbot_bringup.pid_autotune import Gains
 
 vb = pytest.importorskip("chefbot_firmware.virtual_board")
 try:
@@ -28,11 +30,14 @@ FAST = CheckOptions(board_seconds=1.5, run_seconds=1.0, pid_seconds=1.5)
 class SimLink:
     """The pty of a VirtualBoard opened like a serial port; time moves only while reading."""
 
-    def __init__(self, board: VirtualBoard, dt: float = 0.005, fail_after_writes: int | None = None) -> None:
+    def __init__(self, board: VirtualBoard, dt: float = 0.005, fail_after_writes: int | None = None,
+                 interrupt_while_driving: float | None = None) -> None:
         self.board, self.dt, self.t = board, dt, 0.0
         self.fd = os.open(board.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         self.writes = []
         self.fail_after_writes = fail_after_writes
+        self.interrupt_while_driving = interrupt_while_driving   # Ctrl-C after a motor turned this long (s)
+        self.driving_since: float | None = None
 
     def now(self) -> float:
         return self.t
@@ -42,8 +47,14 @@ class SimLink:
             raise OSError(5, "Input/output error (unplugged)")
         self.writes.append(data)
         os.write(self.fd, data)
+        if self.driving_since is None and data.startswith(b"s ") and not data.startswith(b"s 0 0"):
+            self.driving_since = self.t
 
     def read(self, timeout: float) -> bytes:
+        if (self.interrupt_while_driving is not None and self.driving_since is not None
+                and self.t - self.driving_since >= self.interrupt_while_driving):
+            self.interrupt_while_driving = None
+            raise KeyboardInterrupt
         end = self.t + max(timeout, self.dt)
         out = b""
         while not out and self.t < end - 1e-9:
@@ -89,10 +100,13 @@ class ScriptedUi:
         return a
 
 
-def run_check(faults: BuildFaults | None = None, options: CheckOptions = FAST,
+def run_check(faults: BuildFaults | None = None, options: CheckOptions = FAST, motor_strength: float = 1.0,
               **kw) -> tuple[Report, ScriptedUi, SimLink, tuple[float, float, float, float]]:
-    """Run the check; also returns the board's applied commands and wheel duties at the end."""
+    """Run the check; also returns the board's applied commands and wheel duties at the end.
+    ``motor_strength`` scales both motors' free speed (0.8: a heavier robot, a tired battery)."""
     with VirtualBoard(faults=faults) as board:
+        for m in board.motors:
+            m.free_speed *= motor_strength
         link = SimLink(board, fail_after_writes=kw.pop("fail_after_writes", None))
         ui = ScriptedUi(board, **kw)
         try:
@@ -176,16 +190,17 @@ def test_unplugged_mid_check_aborts_without_a_traceback():
     assert any("watchdog" in line for line in ui.lines)
 
 
-def test_interrupt_stops_the_motors_and_passes_on():
+def test_interrupt_while_a_motor_turns_stops_it_and_passes_on():
     with VirtualBoard() as board:
-        link = SimLink(board)
-        ui = ScriptedUi(board, interrupt_on="left motor backward")
+        link = SimLink(board, interrupt_while_driving=0.5)
+        ui = ScriptedUi(board)
         with pytest.raises(KeyboardInterrupt):
             BringupCheck(link, ui, FAST).run()
         link.close()
-        board.step(0.01)
+        assert link.driving_since is not None and link.interrupt_while_driving is None   # it did drive
         assert link.writes[-1].startswith(b"s 0 0")
-        assert board.fw.command(LEFT) == 0 and board.fw.wheel_duty(LEFT) == 0.0
+        assert board.fw.command(LEFT) == 0 and board.fw.wheel_duty(LEFT) == 0.0   # now, not after the watchdog
+        assert any("motors stopped" in line for line in ui.lines)
 
 
 def test_unanswered_hand_turn_is_skipped_after_the_timeout():
@@ -202,3 +217,46 @@ def test_unanswered_hand_turn_is_skipped_after_the_timeout():
 def test_bad_options_are_refused(kw, match):
     with pytest.raises(ValueError, match=match):
         CheckOptions(**kw)
+
+
+AUTOTUNE = CheckOptions(board_seconds=1.0, run_seconds=1.0, hand_turns=False, autotune=True)
+
+
+def test_autotune_fits_the_motor_and_keeps_good_gains():
+    rep, ui, _link, final = run_check(options=AUTOTUNE)
+    assert [s.name for s in rep.steps] == ["board", "motors", "pid", "pid_autotuned", "autotune"], ui.lines
+    tune = rep.steps[4]
+    for side in ("left", "right"):
+        m = tune.data["models"][side]
+        assert m["gain_per_full_command"] == pytest.approx(0.377, rel=0.05)   # the emulator's 80 RPM motor
+        assert 0.05 < m["tau"] < 0.15 and m["dead_time"] < 0.15             # tau 0.08 s + the estimator's lag
+    # today's gains already step well on the nominal motor (pid ok): the proposal must not be pushed
+    assert rep.steps[2].ok
+    assert [v.code for v in tune.verdicts] == ["autotune_keep"], ui.lines
+    assert final == (0, 0, 0, 0)
+
+
+def test_autotune_fixes_a_weaker_motor():
+    """20 % less speed than the feed-forward assumes: today's weak integral never reaches the target."""
+    rep, ui, _link, _final = run_check(options=AUTOTUNE, motor_strength=0.8)
+    pid, tuned, tune = rep.steps[2], rep.steps[3], rep.steps[4]
+    assert not pid.ok and {v.code for v in pid.verdicts} & {"pid_no_rise", "pid_steady_error"}, ui.lines
+    assert tune.data["models"]["left"]["gain_per_full_command"] == pytest.approx(0.8 * 0.377, rel=0.05)
+    assert tuned.ok, ui.lines
+    assert [v.code for v in tune.verdicts] == ["autotune_better"], ui.lines
+    assert tune.data["proposed"]["Ki"] > 10 * 100                           # far more integral than today's 100
+
+
+def test_merge_gains_keeps_the_other_keys():
+    text = merge_gains("# from calibrate_odometry\nticks_meter: 29950\nlwheel_pid: {rolling_pts: 5}\n",
+                       Gains(512.34, 5233.0))
+    data = yaml.safe_load(text)
+    assert data["ticks_meter"] == 29950 and data["lwheel_pid"]["rolling_pts"] == 5
+    assert data["lwheel_pid"]["Kp"] == pytest.approx(512.3) and data["rwheel_pid"]["Ki"] == pytest.approx(5233.0)
+    assert yaml.safe_load(merge_gains(None, Gains(1, 2)))["rwheel_pid"] == {"Kp": 1.0, "Ki": 2.0, "Kd": 0.0}
+
+
+@pytest.mark.parametrize("bad", ["ticks_meter: [1,", "- a list", "lwheel_pid: 3"])
+def test_merge_gains_refuses_a_corrupt_file(bad):
+    with pytest.raises(ValueError, match="fix or remove it"):
+        merge_gains(bad, Gains(1, 2))
