@@ -41,7 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from chefbot_common.geometry import Pose2D, wrap_angle
-from chefbot_navigation.slam.scan import scan_from_ranges
+from chefbot_navigation.slam.scan import scan_from_ranges, transform_points
 from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
 
 
@@ -84,6 +84,19 @@ class ScanData:
         scan = scan_from_ranges(r, self.angle_min, self.angle_increment, self.range_min, self.range_max,
                                 self.sensor_in_base, self.range_max)
         return scan.hits
+
+    def sees(self, pts: np.ndarray) -> np.ndarray:
+        """(M,) bool: which (M, 2) points (base frame) lie in this scan's field of view and range."""
+        local = transform_points(self.sensor_in_base.inverse(), pts)
+        ang = np.arctan2(local[:, 1], local[:, 0])
+        n = np.asarray(self.ranges).shape[-1]
+        lo, hi = self.angle_min, self.angle_min + (n - 1) * self.angle_increment
+        if hi - lo >= 2 * math.pi - 1e-6:
+            in_fov = np.ones(len(local), dtype=bool)
+        else:
+            in_fov = (np.mod(ang - lo, 2 * math.pi) <= hi - lo)
+        rng = np.hypot(local[:, 0], local[:, 1])
+        return in_fov & (rng >= self.range_min) & (rng <= self.range_max)
 
 
 @dataclass(frozen=True)
@@ -199,10 +212,16 @@ def relative_pose(before: ScanData, after: ScanData, guess: Pose2D, travelled: f
 
     # 2. point-to-line ICP from the correlative pose
     fit = _icp(ref, cur, coarse.pose)
-    matched = fit.beams / len(cur)
+    # judged on the after hits the before scan could have seen: a narrow sensor that ended a turn
+    # 15 degrees short, or drove backwards, sees parts of the room the before scan did not
+    visible = int(np.count_nonzero(before.sees(transform_points(fit.pose, cur))))
+    if visible < lim.min_beams:
+        raise ScanReferenceError(f"the scans share too little of the view: {visible} of the after scan's hits lie "
+                                 f"where the before scan looked (< {lim.min_beams})")
+    matched = min(1.0, fit.beams / visible)
     if matched < lim.min_matched:
-        raise ScanReferenceError(f"poor match: only {matched:.0%} of the after scan's beams lie on a surface of the "
-                                 f"before scan (< {lim.min_matched:.0%}); the scans overlap too little")
+        raise ScanReferenceError(f"poor match: only {matched:.0%} of the after scan's beams in the before scan's view "
+                                 f"lie on one of its surfaces (< {lim.min_matched:.0%}); did something move?")
     if fit.constraint < lim.min_constraint:
         raise ScanReferenceError(
             f"the scene does not constrain the motion along {_direction(fit.weakest)} (constraint "

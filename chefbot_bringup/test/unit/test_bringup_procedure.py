@@ -7,7 +7,6 @@ simulated (the board advances while the check waits for bytes), so a run takes ~
 from __future__ import annotations
 
 import math
-import os
 
 import pytest
 import yaml
@@ -27,26 +26,23 @@ SIDE = {"left": LEFT, "right": RIGHT}
 FAST = CheckOptions(board_seconds=1.5, run_seconds=1.0, pid_seconds=1.5)
 
 
-class SimLink:
-    """The pty of a VirtualBoard opened like a serial port; time moves only while reading."""
+class SimLink(vb.SteppedSerial):
+    """The emulator's stepped serial port, with faults: a write error after ``fail_after_writes``
+    writes (unplugged), a Ctrl-C once a motor turned for ``interrupt_while_driving`` s."""
 
-    def __init__(self, board: VirtualBoard, dt: float = 0.005, fail_after_writes: int | None = None,
+    def __init__(self, board: VirtualBoard, fail_after_writes: int | None = None,
                  interrupt_while_driving: float | None = None) -> None:
-        self.board, self.dt, self.t = board, dt, 0.0
-        self.fd = os.open(board.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        super().__init__(board)
         self.writes = []
         self.fail_after_writes = fail_after_writes
-        self.interrupt_while_driving = interrupt_while_driving   # Ctrl-C after a motor turned this long (s)
+        self.interrupt_while_driving = interrupt_while_driving
         self.driving_since: float | None = None
-
-    def now(self) -> float:
-        return self.t
 
     def write(self, data: bytes) -> None:
         if self.fail_after_writes is not None and len(self.writes) >= self.fail_after_writes:
             raise OSError(5, "Input/output error (unplugged)")
         self.writes.append(data)
-        os.write(self.fd, data)
+        super().write(data)
         if self.driving_since is None and data.startswith(b"s ") and not data.startswith(b"s 0 0"):
             self.driving_since = self.t
 
@@ -55,19 +51,7 @@ class SimLink:
                 and self.t - self.driving_since >= self.interrupt_while_driving):
             self.interrupt_while_driving = None
             raise KeyboardInterrupt
-        end = self.t + max(timeout, self.dt)
-        out = b""
-        while not out and self.t < end - 1e-9:
-            self.board.step(self.dt)
-            self.t += self.dt
-            try:
-                out = os.read(self.fd, 4096)
-            except BlockingIOError:
-                pass
-        return out
-
-    def close(self) -> None:
-        os.close(self.fd)
+        return super().read(timeout)
 
 
 class ScriptedUi:

@@ -76,6 +76,18 @@ def test_recovers_known_motion(sensor, motion, seed):
     assert all(0.0 < s < 0.01 for s in res.sigma)
 
 
+@pytest.mark.parametrize("motion", [Pose2D(0.003, 0.0, 2 * math.pi - math.radians(14.0)),    # a turn 14 deg short
+                                    Pose2D(-0.8, 0.0, 0.0)])                                  # backwards: sees more
+def test_partial_overlap_of_a_narrow_view_is_judged_on_what_both_could_see(motion):
+    """The camera's 60 deg view: ending a turn 14 deg short, or backing away, leaves part of the after
+    scan outside the before scan's view; the matched share is counted within it."""
+    before, after = pair(Pose2D(-0.2, 0.3, 0.05), motion, CAMERA, 3)
+    guess = Pose2D(motion.x * 0.99, 0.0, 2 * math.pi if motion.yaw else 0.0)
+    res = relative_pose(before, after, guess)
+    check(res, motion)
+    assert res.matched > 0.7
+
+
 @pytest.mark.parametrize("sensor", SENSORS)
 def test_precision_over_seeds(sensor):
     """The figures for the calibration: a 1 m drive to better than 3 mm, two turns to ~0.1 deg."""

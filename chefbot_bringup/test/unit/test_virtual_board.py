@@ -8,7 +8,14 @@ import serial
 
 from chefbot_bringup import launchpad_protocol as proto
 from chefbot_bringup.launchpad import LaunchpadCore
-from chefbot_firmware.virtual_board import EDGES_PER_REV, FREE_SPEED_RAD_S, MotorModel, PtyPort, VirtualBoard
+from chefbot_firmware.virtual_board import (
+    EDGES_PER_REV,
+    FREE_SPEED_RAD_S,
+    MotorModel,
+    PtyPort,
+    SteppedSerial,
+    VirtualBoard,
+)
 
 
 def run(board: VirtualBoard, ser: serial.Serial, core: LaunchpadCore, seconds: float, cmd: bytes | None,
@@ -104,3 +111,20 @@ def test_unplug_fails_the_open_port_and_replug_keeps_the_link(link) -> None:
             board.step(0.1)
             assert drain(ser2)
         assert first  # the old path is gone; the link is what drivers use
+
+
+def test_stepped_serial_moves_time_only_while_reading() -> None:
+    with VirtualBoard() as board, SteppedSerial(board, dt=0.01) as port:
+        assert port.now() == 0.0
+        port.write(b"s 300 300\r")
+        assert port.now() == 0.0                       # writing takes no time
+        seen = b""
+        while port.now() < 1.0:
+            seen += port.read(0.1)
+        assert 1.0 <= port.now() < 1.1
+        lines = [ln for ln in seen.split(b"\n") if ln.startswith(b"e\t")]
+        assert 25 <= len(lines) <= 35                   # 30 Hz status lines over one simulated second
+        assert board.motors[0].angle > 0               # the command reached the board and turned the wheels
+        assert port.read(0.0) is not None and port.now() >= 1.0
+    with pytest.raises(ValueError, match="dt"):
+        SteppedSerial(board, dt=0.0)

@@ -350,3 +350,48 @@ class VirtualBoard:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class SteppedSerial:
+    """A :class:`VirtualBoard`'s pty opened as a driver opens its serial port, in simulated time.
+
+    For running PC-side code against the board faster than real time and deterministically:
+    ``write`` sends bytes to the board; ``read(timeout)`` steps the board by ``dt`` at a time until
+    it has written something or ``timeout`` of simulated time passed; ``now()`` is that time (s).
+    Time moves only inside ``read``.
+    """
+
+    def __init__(self, board: VirtualBoard, dt: float = 0.005) -> None:
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be > 0 s, got {dt!r}")
+        self.board, self.dt, self.t = board, dt, 0.0
+        self.fd = os.open(board.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+
+    def now(self) -> float:
+        return self.t
+
+    def write(self, data: bytes) -> None:
+        os.write(self.fd, data)
+
+    def read(self, timeout: float) -> bytes:
+        end = self.t + max(timeout, self.dt)
+        out = b""
+        while not out and self.t < end - 1e-9:
+            self.board.step(self.dt)
+            self.t += self.dt
+            try:
+                out = os.read(self.fd, 4096)
+            except BlockingIOError:
+                pass
+        return out
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+    def __enter__(self) -> SteppedSerial:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
