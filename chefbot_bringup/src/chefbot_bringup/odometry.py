@@ -73,8 +73,9 @@ class OdometryConfig:
     """Parameters of the dead-reckoning core."""
 
     ticks_meter: float = 14854.0      # encoder ticks per metre of wheel travel (ticks/m)
-    ticks_meter_left: float | None = None    # ticks/m of the left wheel alone (unset: ticks_meter)
-    ticks_meter_right: float | None = None   # ticks/m of the right wheel alone (unset: ticks_meter)
+    ticks_meter_left: float | None = None    # ticks/m: the left wheel's own, for wheels of unequal diameter
+                                             #   (unset: ticks_meter)
+    ticks_meter_right: float | None = None   # ticks/m: the right wheel's own (unset: ticks_meter)
     base_width: float = 0.30          # distance between the wheel contact points (m)
     encoder: EncoderRange = field(default_factory=EncoderRange)
     max_wheel_speed: float = 0.377    # fastest physically possible wheel speed (m/s)
