@@ -5,7 +5,9 @@ The node plays the LaunchPad: it integrates the PID outputs
 (left/right_wheel_speed) through a first-order motor model
 (speed = cmd / 1023 * 0.377 m/s, time constant 0.1 s) into Int32 tick
 counters published at 30 Hz, and publishes a clear ultrasonic Range at 20 Hz
-unless a test puts an obstacle in front.
+unless a test puts an obstacle in front.  Each wheel counts ``ticks_meter_left``
+/ ``ticks_meter_right`` per metre when set (diff_drive_per_wheel.test), else
+``ticks_meter``.
 """
 from __future__ import annotations
 
@@ -33,8 +35,8 @@ BASE_WIDTH = 0.30
 class WheelSim:
     """Two first-order motors with encoders, advanced on a 30 Hz timer in ROS time."""
 
-    def __init__(self, ticks_meter: float) -> None:
-        self.tpm = ticks_meter
+    def __init__(self, ticks_meter: tuple[float, float]) -> None:
+        self.tpm = ticks_meter       # (left, right) ticks/m
         self.lock = threading.Lock()
         self.cmd = [0.0, 0.0]
         self.vel = [0.0, 0.0]
@@ -66,7 +68,7 @@ class WheelSim:
                     self.vel[i] = v0 + a * (goal - v0)
                     self.pos[i] += 0.5 * (v0 + self.vel[i]) * dt
             self.t = t
-            ticks = [int(round(p * self.tpm)) for p in self.pos]
+            ticks = [int(round(p * tpm)) for p, tpm in zip(self.pos, self.tpm, strict=True)]
             self.history.append((t, self.pos[0], self.pos[1]))
         for i in range(2):
             self.pub[i].publish(Int32(ticks[i]))
@@ -114,8 +116,9 @@ class TestDiffDrive(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
         rospy.init_node("diff_drive_test")
-        cls.tpm = float(rospy.get_param("ticks_meter"))
-        cls.sim = WheelSim(cls.tpm)
+        tpm = float(rospy.get_param("ticks_meter"))
+        cls.sim = WheelSim((float(rospy.get_param("ticks_meter_left", tpm)),
+                            float(rospy.get_param("ticks_meter_right", tpm))))
         cls.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
         cls.motor_l = Recorder("left_wheel_speed", Float32, lambda m: m.data)
         cls.motor_r = Recorder("right_wheel_speed", Float32, lambda m: m.data)
@@ -155,7 +158,7 @@ class TestDiffDrive(unittest.TestCase):
         wait_for(lambda: bool(self.odom.since(t)), 2.0, "fresh odom")
 
     def test_1_forward_no_stutter_and_stop(self) -> None:
-        x0 = self.odom.last()[0]
+        x0, _, yaw0, _ = self.odom.last()
         d0 = self.sim.distances()
         t0, t_last = self.drive(0.2, 0.0, 4.0)
         # Steady state over the last second.
@@ -163,6 +166,15 @@ class TestDiffDrive(unittest.TestCase):
         vr = [v for ts, v in self.vel_r.since(t_last - 1.0)]
         self.assertAlmostEqual(sum(vl) / len(vl), 0.2, delta=0.02)
         self.assertAlmostEqual(sum(vr) / len(vr), 0.2, delta=0.02)
+        # ... as each PID measures its wheel: in true m/s (per-wheel test: with ticks_meter instead of its
+        # wheel's own it reads 4 % off, 0.008 m/s)
+        with self.sim.lock:
+            hist = np.array([h for h in self.sim.history if t_last - 1.0 <= h[0] <= t_last])
+        true_l, true_r = (hist[-1, 1:] - hist[0, 1:]) / (hist[-1, 0] - hist[0, 0])
+        rospy.loginfo(f"diff_drive_test: true wheel speeds {true_l:.4f} / {true_r:.4f} m/s, "
+                      f"measured {sum(vl) / len(vl):.4f} / {sum(vr) / len(vr):.4f}")
+        self.assertAlmostEqual(sum(vl) / len(vl), true_l, delta=0.003)
+        self.assertAlmostEqual(sum(vr) / len(vr), true_r, delta=0.003)
         ml = [v for ts, v in self.motor_l.since(t_last - 1.0)]
         mr = [v for ts, v in self.motor_r.since(t_last - 1.0)]
         self.assertTrue(all(v > 0 for v in ml + mr))
@@ -182,6 +194,9 @@ class TestDiffDrive(unittest.TestCase):
         travelled = 0.5 * ((d1[0] - d0[0]) + (d1[1] - d0[1]))
         self.assertGreater(travelled, 0.6)
         self.assertAlmostEqual(self.odom.last()[0] - x0, travelled, delta=0.01)
+        # the heading follows the wheels' (diff_tf with one ticks_meter would turn 0.2 rad here)
+        turned = ((d1[1] - d0[1]) - (d1[0] - d0[0])) / BASE_WIDTH
+        self.assertAlmostEqual(self.odom.last()[2] - yaw0, turned, delta=0.01)
 
     def test_2_rotation_sign(self) -> None:
         yaw0 = self.odom.last()[2]

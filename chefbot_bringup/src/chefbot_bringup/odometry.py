@@ -4,7 +4,9 @@ Conventions (REP 103): x forward, y left, +theta counter-clockwise seen from
 above; the left wheel sits at +y = base_width / 2, the right wheel at -y.
 
 Kinematics (the book's chapter 2, equations 10-15, written from the
-semantics): for wheel travel ``dl``, ``dr`` (m) over one update
+semantics): for wheel travel ``dl``, ``dr`` (m) over one update (each wheel's
+ticks over its own ticks per metre: ``ticks_meter_left`` / ``ticks_meter_right``
+for wheels of unequal diameter, else the shared ``ticks_meter``)
 
     d      = (dl + dr) / 2           distance of the base centre (m)
     dtheta = (dr - dl) / b           heading change (rad), b = base_width
@@ -71,6 +73,9 @@ class OdometryConfig:
     """Parameters of the dead-reckoning core."""
 
     ticks_meter: float = 14854.0      # encoder ticks per metre of wheel travel (ticks/m)
+    ticks_meter_left: float | None = None    # ticks/m: the left wheel's own, for wheels of unequal diameter
+                                             #   (unset: ticks_meter)
+    ticks_meter_right: float | None = None   # ticks/m: the right wheel's own (unset: ticks_meter)
     base_width: float = 0.30          # distance between the wheel contact points (m)
     encoder: EncoderRange = field(default_factory=EncoderRange)
     max_wheel_speed: float = 0.377    # fastest physically possible wheel speed (m/s)
@@ -86,12 +91,23 @@ class OdometryConfig:
         for name in ("ticks_meter", "base_width", "max_wheel_speed", "imu_timeout", "twist_window"):
             if not (getattr(self, name) > 0 and math.isfinite(getattr(self, name))):
                 raise ValueError(f"{name} must be a positive finite number, got {getattr(self, name)!r}")
+        for name in ("ticks_meter_left", "ticks_meter_right"):   # unequal wheels (the calibration's E_d)
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                  or not (v > 0 and math.isfinite(v))):
+                raise ValueError(f"{name} must be a positive finite number (ticks/m) or unset, got {v!r}")
         for name in ("wheel_slip_var", "min_pose_var", "twist_linear_var", "twist_angular_var"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not 0.0 <= self.imu_delay < min(self.imu_timeout, WHEEL_HISTORY_S):
             raise ValueError(f"imu_delay must be >= 0 s and below imu_timeout ({self.imu_timeout} s), "
                              f"got {self.imu_delay!r}")
+
+    @property
+    def wheel_ticks_meter(self) -> tuple[float, float]:
+        """Ticks per metre of the (left, right) wheel: each wheel's own value, else ``ticks_meter``."""
+        return (float(self.ticks_meter if self.ticks_meter_left is None else self.ticks_meter_left),
+                float(self.ticks_meter if self.ticks_meter_right is None else self.ticks_meter_right))
 
 
 @dataclass
@@ -122,6 +138,7 @@ class DiffOdometry:
 
     def __init__(self, cfg: OdometryConfig) -> None:
         self.cfg = cfg
+        self._tpm_l, self._tpm_r = cfg.wheel_ticks_meter   # ticks/m per wheel
         self._left = TickUnwrapper(cfg.encoder)
         self._right = TickUnwrapper(cfg.encoder)
         self._pos_l: int | None = None      # latest unwrapped positions (ticks)
@@ -208,8 +225,8 @@ class DiffOdometry:
             self._t_last = t
             return self.state(t)
         cfg = self.cfg
-        dl = (self._pos_l - self._base_l) / cfg.ticks_meter
-        dr = (self._pos_r - self._base_r) / cfg.ticks_meter
+        dl = (self._pos_l - self._base_l) / self._tpm_l
+        dr = (self._pos_r - self._base_r) / self._tpm_r
         # A wheel cannot travel farther than max speed allows (50 % margin plus
         # a couple of cm for message jitter): anything bigger is a counter
         # reset or garbage, so take the new counters as the baseline.

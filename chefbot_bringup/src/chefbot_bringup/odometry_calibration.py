@@ -318,7 +318,9 @@ class Calibration:
                       f"E_b {u.closed_form[1]:.5f}); model residual {u.fit_residual * 1000:.1f} mm"]
         lines += [f"ticks_meter: {self.ticks_meter:.1f}        # [ticks/m] harmonic mean of the wheels below",
                   f"base_width: {self.base_width:.5f}          # [m] effective wheel separation",
-                  "# per wheel: not read by the nodes yet (they use ticks_meter)",
+                  "# per wheel: diff_tf takes each wheel's travel from its own, lwheel_pid / rwheel_pid",
+                  "# (pid_velocity, ~side left / right) their wheel's; ticks_meter stays for the one-value readers",
+                  "# (launchpad_node's encoder jump bound, bringup_check)",
                   f"ticks_meter_left: {self.ticks_meter_left:.1f}   # [ticks/m]",
                   f"ticks_meter_right: {self.ticks_meter_right:.1f}  # [ticks/m]"]
         return "\n".join(lines) + "\n"

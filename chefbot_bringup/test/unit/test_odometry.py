@@ -1,5 +1,9 @@
-"""DiffOdometry: exact arc, signs, wrap, resets, covariance."""
+"""DiffOdometry: exact arc, signs, wrap, resets, covariance, per-wheel ticks_meter."""
+import hashlib
+import json
 import math
+import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -310,3 +314,99 @@ def test_a_jump_no_late_clock_explains_still_rebaselines():
     odo.set_ticks(left + round(0.5 * TPM), right + round(0.5 * TPM))   # 0.5 m in one line
     odo.update(t + 0.01)
     assert odo.resets == 1 and odo.x == pytest.approx(x)
+
+
+# ---------------------------------------------------------------- per-wheel ticks_meter (issue 31)
+RECORDED = Path(__file__).resolve().parents[1] / "fixtures" / "odometry_ticks.json"
+
+
+def replay(odo: DiffOdometry, events: list, use_imu: bool) -> tuple[str, list[str]]:
+    """Feed a recording as diff_tf does (an ``e`` line: both counters then update at its arrival; an
+    ``i`` sample: the IMU yaw, with ``use_imu``); sha256 of every estimate's floats (exact bits) and
+    the last estimate as hex floats."""
+    digest = hashlib.sha256()
+    last: list[float] = []
+    for ev in events:
+        if ev[0] == "i":
+            if use_imu:
+                odo.set_imu_yaw(ev[2], ev[1])
+            continue
+        odo.set_ticks(ev[2], ev[3])
+        st = odo.update(ev[1])
+        if st is None:
+            continue
+        last = [st.t, st.x, st.y, st.theta, st.v, st.w, *st.pose_cov.ravel(), *st.twist_cov.ravel(),
+                float(odo.resets), float(odo.held), float(odo.imu_used)]
+        digest.update(struct.pack(f"<{len(last)}d", *last))
+    return digest.hexdigest(), [v.hex() for v in last]
+
+
+def recorded_config(rec: dict, **kw) -> OdometryConfig:
+    c = rec["config"]
+    return OdometryConfig(ticks_meter=c["ticks_meter"], base_width=c["base_width"],
+                          encoder=EncoderRange(*c["encoder"]), wheel_slip_var=c["wheel_slip_var"],
+                          twist_window=c["twist_window"], imu_delay=c["imu_delay"], **kw)
+
+
+@pytest.mark.parametrize("use_imu", [False, True], ids=["wheels", "imu"])
+@pytest.mark.parametrize("per_wheel", [{}, {"ticks_meter_left": None, "ticks_meter_right": None},
+                                       {"ticks_meter_left": 29708.0, "ticks_meter_right": 29708.0}],
+                         ids=["not_given", "unset", "equal_to_ticks_meter"])
+def test_without_per_wheel_values_odometry_is_bit_identical_to_before(per_wheel, use_imu):
+    """A recorded tick sequence (16 s: curves, a spin, reverse, Int16 wraps, a coarse clock, a stalled
+    clock, a board reset, time going back) gives exactly (every bit of every estimate) what
+    DiffOdometry gave before the per-wheel values existed (commit e245203), when they are unset
+    or equal to ticks_meter."""
+    rec = json.loads(RECORDED.read_text())
+    odo = DiffOdometry(recorded_config(rec, **per_wheel))
+    digest, last = replay(odo, rec["events"], use_imu)
+    want = rec["expected"]["imu" if use_imu else "wheels"]
+    assert last == want["last"]
+    assert digest == want["sha256"]
+    assert odo.resets == 1 and odo.held > 0   # the recording does reach the jump logic
+
+
+def test_each_wheel_travels_its_own_ticks_over_its_own_ticks_meter():
+    tl, tr = 30000.0, 29000.0
+    odo = make(ticks_meter_left=tl, ticks_meter_right=tr)
+    odo.set_ticks(0, 0)
+    odo.update(0.0)
+    odo.set_ticks(round(0.02 * tl), round(0.02 * tr))   # both wheels 2 cm in 0.1 s
+    odo.update(0.1)
+    assert odo.x == pytest.approx(0.02, abs=1e-9) and odo.theta == pytest.approx(0.0, abs=1e-9)
+    assert odo.v == pytest.approx(0.2, abs=1e-9) and odo.w == pytest.approx(0.0, abs=1e-9)
+    # with the shared value the same counts would read as a turn to the right
+    shared = make()
+    shared.set_ticks(0, 0)
+    shared.update(0.0)
+    shared.set_ticks(round(0.02 * tl), round(0.02 * tr))
+    shared.update(0.1)
+    assert shared.theta < -1e-3
+
+
+def test_one_wheel_given_the_other_takes_ticks_meter():
+    assert OdometryConfig(ticks_meter=TPM, ticks_meter_right=15000).wheel_ticks_meter == (TPM, 15000.0)
+    assert OdometryConfig(ticks_meter=TPM, ticks_meter_left=15000).wheel_ticks_meter == (15000.0, TPM)
+    assert OdometryConfig(ticks_meter=TPM).wheel_ticks_meter == (TPM, TPM)
+
+
+def test_jump_limit_is_in_metres_of_each_wheel():
+    """The counter-reset check judges each wheel's travel in metres: a right wheel with fewer ticks
+    per metre covers more ground per tick, so the same counts can be a jump for it alone."""
+    def jumps(tr: float) -> int:
+        odo = make(ticks_meter_left=TPM, ticks_meter_right=tr, max_wheel_speed=0.377)
+        odo.set_ticks(0, 0)
+        odo.update(0.0)
+        ticks = round(0.5 * TPM)   # 0.5 m in 1 s on the left: within 1.5 x 0.377 + 0.02 = 0.5855 m
+        odo.set_ticks(ticks, ticks)
+        odo.update(1.0)
+        return odo.resets
+    assert jumps(TPM) == 0
+    assert jumps(TPM / 1.6) == 1   # the right wheel's 0.8 m: too far even for a late clock (0.755 m)
+
+
+@pytest.mark.parametrize("bad", [0.0, -29708.0, math.inf, math.nan, "29708", True])
+def test_bad_per_wheel_value_is_rejected_by_name(bad):
+    for name in ("ticks_meter_left", "ticks_meter_right"):
+        with pytest.raises(ValueError, match=name):
+            OdometryConfig(**{name: bad})

@@ -390,6 +390,7 @@ def test_yaml_has_the_diff_drive_keys_and_says_how(tmp_path):
     assert data["ticks_meter_left"] == pytest.approx(cal.ticks_meter_left, abs=0.05)
     assert data["ticks_meter_right"] == pytest.approx(cal.ticks_meter_right, abs=0.05)
     assert "UMBmark" in text and "straight line" in text and "before: ticks_meter 29708.0" in text
+    assert "not read" not in text and "diff_tf" in text and "lwheel_pid / rwheel_pid" in text
 
 
 def test_calibration_without_steps_keeps_the_values():
