@@ -117,9 +117,9 @@ class HandTurn:
 class Expectations:
     """What the configuration promises (defaults: param/diff_drive.yaml, 4X firmware)."""
 
-    ticks_meter: float = TICKS_METER
-    wheel_diameter: float = WHEEL_DIAMETER
-    max_wheel_speed: float = MAX_WHEEL_SPEED
+    ticks_meter: float = TICKS_METER          # ticks/m: encoder ticks per metre of wheel travel (counts per wheel turn)
+    wheel_diameter: float = WHEEL_DIAMETER    # m: nominal wheel
+    max_wheel_speed: float = MAX_WHEEL_SPEED  # m/s: wheel speed at full duty
 
     def __post_init__(self) -> None:
         for name in ("ticks_meter", "wheel_diameter", "max_wheel_speed"):

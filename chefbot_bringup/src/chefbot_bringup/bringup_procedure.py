@@ -52,22 +52,28 @@ class LinkError(RuntimeError):
 class Link(Protocol):
     """The board's serial port and a clock (seconds)."""
 
-    def now(self) -> float: ...
+    def now(self) -> float:
+        """The link's clock (s)."""
 
-    def write(self, data: bytes) -> None: ...
+    def write(self, data: bytes) -> None:
+        """Send bytes to the board."""
 
-    def read(self, timeout: float) -> bytes: ...   # what arrived within ``timeout`` s (may be b"")
+    def read(self, timeout: float) -> bytes:
+        """What arrived within ``timeout`` s (may be empty)."""
 
 
 class Ui(Protocol):
     """The terminal: ``say`` prints a line; ``ask`` shows a question whose reply ``answer``
     returns once the user gave it (None until then)."""
 
-    def say(self, text: str) -> None: ...
+    def say(self, text: str) -> None:
+        """Show one line."""
 
-    def ask(self, text: str) -> None: ...
+    def ask(self, text: str) -> None:
+        """Show a question; its reply comes through :meth:`answer`."""
 
-    def answer(self) -> str | None: ...
+    def answer(self) -> str | None:
+        """The reply to the last question once given, else None."""
 
 
 @dataclass(frozen=True)
@@ -125,6 +131,7 @@ class StepReport:
 
     @property
     def ok(self) -> bool:
+        """True when the step has verdicts and all are ok."""
         return bool(self.verdicts) and all(v.ok for v in self.verdicts)
 
 
@@ -138,6 +145,7 @@ class Report:
 
     @property
     def ok(self) -> bool:
+        """True when the check ran to the end and every step is ok."""
         return not self.aborted and bool(self.steps) and all(s.ok for s in self.steps)
 
     def codes(self) -> list[str]:
@@ -179,6 +187,7 @@ class Board:
         self._last_sent = -math.inf
 
     def send(self, data: bytes) -> None:
+        """Write ``data``; LinkError if the port refuses."""
         try:
             self.link.write(data)
         except (OSError, ValueError) as exc:       # pyserial's SerialException is an OSError
@@ -382,6 +391,7 @@ class BringupCheck:
 
     # ---------------------------------------------------------------- 1. the board
     def board_step(self) -> StepReport:
+        """Step 1: reset the board, wait for its hello, judge its lines (board_verdicts)."""
         b = self.board
         self.ui.say("1/3 board: resetting it and listening ...")
         b.reset()
@@ -459,6 +469,7 @@ class BringupCheck:
         return bc.HandTurn(side, count_delta(start.left, end.left), count_delta(start.right, end.right))
 
     def motor_step(self) -> StepReport:
+        """Step 2: each motor alone forward and backward, the hand turns, the wiring diagnosis."""
         self.ui.say(f"2/3 motors: robot on blocks, wheels free; each motor alone at {self.opt.duty:.0%} duty, "
                     f"forward then backward, {self.opt.run_seconds:.1f} s each")
         runs: list[bc.MotorRun] = []
@@ -529,6 +540,7 @@ class BringupCheck:
         return rec
 
     def pid_step(self, pid: PidConfig | None = None, name: str = "pid") -> StepReport:
+        """Step 3: both speed loops (``pid``, default the configured gains) step to pid_target; their verdicts."""
         pid = pid or self.pid
         title = "3/3 pid" if name == "pid" else "autotune"
         self.ui.say(f"{title}: both wheels' speed loops (Kp {pid.kp:.0f}, Ki {pid.ki:.0f}, Kd {pid.kd:.0f}) step to "

@@ -44,21 +44,30 @@ class CalibrationError(RuntimeError):
 class Robot(Protocol):
     """The robot as the procedure sees it (the node: topics and ROS time)."""
 
-    def now(self) -> float: ...                       # s
+    def now(self) -> float:
+        """The robot's clock (s; ROS time, sim time in the simulator)."""
 
-    def wait(self, seconds: float) -> None: ...       # let ``seconds`` pass while data keeps arriving
+    def wait(self, seconds: float) -> None:
+        """Let ``seconds`` pass while data keeps arriving."""
 
-    def counts(self) -> tuple[int, int] | None: ...   # latest raw (left, right) wheel ticks, None before any
+    def counts(self) -> tuple[int, int] | None:
+        """The latest raw (left, right) wheel ticks, None before any."""
 
-    def drive(self, v: float, w: float) -> None: ...  # cmd_vel: m/s forward, rad/s left
+    def drive(self, v: float, w: float) -> None:
+        """Command ``v`` m/s forward and ``w`` rad/s to the left."""
 
-    def snapshot(self) -> Any: ...                    # what the reference compares (the latest scan), or None
+    def snapshot(self) -> Any:
+        """What the reference compares (the latest scans), or None."""
 
 
 class Ui(Protocol):
-    def say(self, text: str) -> None: ...
+    """The terminal: lines out, blocking questions."""
 
-    def ask(self, text: str) -> str | None: ...       # blocking question; None: no answer (non-interactive)
+    def say(self, text: str) -> None:
+        """Show one line."""
+
+    def ask(self, text: str) -> str | None:
+        """Ask and wait for the reply; None without a user (non-interactive)."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +80,7 @@ class Motion:
 
     @property
     def distance(self) -> float:
+        """Straight-line distance moved (m)."""
         return math.hypot(self.x, self.y)
 
 
@@ -81,7 +91,8 @@ class Reference(Protocol):
 
     name: str
 
-    def measure(self, kind: str, before: Any, after: Any, guess: Motion) -> Motion: ...
+    def measure(self, kind: str, before: Any, after: Any, guess: Motion) -> Motion:
+        """The true motion between the snapshots ``before`` and ``after`` (see the class)."""
 
 
 class TapeReference:
@@ -105,6 +116,7 @@ class TapeReference:
         return value
 
     def measure(self, kind: str, before: Any, after: Any, guess: Motion) -> Motion:
+        """Ask for the move of ``kind`` (straight, turn, square); ValueError without a usable answer."""
         if kind == "straight":
             d = self._number(f"how far did the robot move, in m, measured on the floor (odometry says "
                              f"{guess.distance:.3f})?")
@@ -133,6 +145,7 @@ class WheelOdometry:
         self.x = self.y = self.yaw = 0.0
 
     def update(self, counts: tuple[int, int]) -> Motion:
+        """Advance by the ticks since the last call; the pose since :meth:`reset`."""
         if self._last is None:
             self.reset(counts)
         dl = wrap_int32(counts[0] - self._last[0]) / self.ticks_meter_left
@@ -143,6 +156,7 @@ class WheelOdometry:
 
     @property
     def motion(self) -> Motion:
+        """The pose since :meth:`reset`."""
         return Motion(self.x, self.y, self.yaw)
 
 
@@ -184,6 +198,7 @@ class CalibrationReport:
     aborted: str = ""
 
     def to_dict(self) -> dict:
+        """Plain data for the YAML report."""
         c = self.calibration
         return {"aborted": self.aborted, "steps": self.steps,
                 "result": None if c is None else {
@@ -214,6 +229,7 @@ class OdometryCalibration:
 
     # ---------------------------------------------------------------- the whole run
     def run(self) -> CalibrationReport:
+        """All steps, then the stop; the report says what was found (or why it ended early)."""
         try:
             self._run()
         except (CalibrationError, ValueError) as exc:
@@ -343,6 +359,7 @@ class OdometryCalibration:
         self._loop("turn", command, abs(angle) / 0.08 + 10.0)
 
     def square(self, side: float, clockwise: bool) -> None:
+        """Four times ``side`` m and a quarter turn (right when ``clockwise``)."""
         corner = -math.pi / 2 if clockwise else math.pi / 2
         for _ in range(4):
             self.straight(side)
@@ -350,6 +367,7 @@ class OdometryCalibration:
 
     # ---------------------------------------------------------------- the steps
     def straight_step(self) -> float:
+        """Step 1: the ticks_meter factor from driving forth and back."""
         d = self.opt.distance
         self.ui.say(f"1/3 straight: {d:.2f} m forward, then back")
         odom_sum = true_sum = 0.0
@@ -368,6 +386,7 @@ class OdometryCalibration:
         return factor
 
     def turn_step(self) -> float:
+        """Step 2: the base_width factor from turns both ways."""
         n = self.opt.turns
         self.ui.say(f"2/3 turns: {n} full turns to the left, then {n} to the right")
         odom_sum = true_sum = 0.0
