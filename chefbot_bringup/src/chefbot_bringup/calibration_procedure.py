@@ -198,14 +198,23 @@ class CalibrationReport:
     aborted: str = ""
 
     def to_dict(self) -> dict:
-        """Plain data for the YAML report."""
+        """Plain data for the YAML report (numpy numbers as Python ones)."""
         c = self.calibration
-        return {"aborted": self.aborted, "steps": self.steps,
+        return plain({"aborted": self.aborted, "steps": self.steps,
                 "result": None if c is None else {
                     "ticks_meter": round(c.ticks_meter, 1), "ticks_meter_left": round(c.ticks_meter_left, 1),
                     "ticks_meter_right": round(c.ticks_meter_right, 1), "base_width": round(c.base_width, 5),
                     "ticks_meter_before": c.ticks_meter_before, "base_width_before": c.base_width_before},
-                "e_max_before": self.e_max_before, "e_max_after": self.e_max_after}
+                "e_max_before": self.e_max_before, "e_max_after": self.e_max_after})
+
+
+def plain(obj: Any) -> Any:
+    """``obj`` with numpy scalars turned into Python numbers, recursively (yaml.safe_dump refuses numpy)."""
+    if isinstance(obj, dict):
+        return {k: plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    return obj.item() if hasattr(obj, "item") and not isinstance(obj, (str, bytes)) else obj
 
 
 def e_max(cw: list[tuple[float, float]], ccw: list[tuple[float, float]]) -> float:
@@ -388,7 +397,7 @@ class OdometryCalibration:
     def turn_step(self) -> float:
         """Step 2: the base_width factor from turns both ways."""
         n = self.opt.turns
-        self.ui.say(f"2/3 turns: {n} full turns to the left, then {n} to the right")
+        self.ui.say(f"2/3 turns: {n} full turn{'s' if n != 1 else ''} to the left, then {n} to the right")
         odom_sum = true_sum = 0.0
         rows = []
         for sign in (1.0, -1.0):

@@ -6,8 +6,6 @@ simulated (the board advances while the check waits for bytes), so a run takes ~
 """
 from __future__ import annotations
 
-import math
-
 import pytest
 import yaml
 
@@ -54,34 +52,24 @@ class SimLink(vb.SteppedSerial):
         return super().read(timeout)
 
 
-class ScriptedUi:
-    """Answers every question at once; a question about a wheel turns it one turn forward first
-    (the builder's hand). ``interrupt_on`` raises KeyboardInterrupt when a line containing it is said."""
+class ScriptedUi(vb.BuilderHands):
+    """The builder's hands; ``answer=False``: nobody answers; ``interrupt_on``: Ctrl-C when a line
+    containing it is said."""
 
-    def __init__(self, board: VirtualBoard | None = None, answer: bool = True, interrupt_on: str = "") -> None:
-        self.board, self.answer_questions, self.interrupt_on = board, answer, interrupt_on
-        self.lines: list[str] = []
-        self.questions: list[str] = []
-        self._pending: str | None = None
+    def __init__(self, board: VirtualBoard, answer: bool = True, interrupt_on: str = "") -> None:
+        super().__init__(board)
+        self.answer_questions, self.interrupt_on = answer, interrupt_on
 
     def say(self, text: str) -> None:
-        self.lines.append(text)
+        super().say(text)
         if self.interrupt_on and self.interrupt_on in text:
             raise KeyboardInterrupt
 
     def ask(self, text: str) -> None:
-        self.questions.append(text)
-        if not self.answer_questions:
-            return
-        for side in ("LEFT", "RIGHT"):
-            if f"the {side} wheel" in text and self.board is not None:
-                for _ in range(100):
-                    self.board.turn_wheel(SIDE[side.lower()], 2 * math.pi / 100)
-        self._pending = ""
-
-    def answer(self) -> str | None:
-        a, self._pending = self._pending, None
-        return a
+        if self.answer_questions:
+            super().ask(text)
+        else:
+            self.questions.append(text)
 
 
 def run_check(faults: BuildFaults | None = None, options: CheckOptions = FAST, motor_strength: float = 1.0,

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
+from chefbot_bringup import kinematic_robot as kr
 from chefbot_bringup.calibration_procedure import (
     CalibrationError,
     CalibrationOptions,
@@ -23,72 +24,15 @@ from chefbot_bringup.calibration_procedure import (
     WheelOdometry,
     merge_calibration,
 )
+from chefbot_bringup.kinematic_robot import NOMINAL_RADIUS, TICKS_METER, TruthReference
 from chefbot_bringup.odometry_calibration import calibrate
 
-TICKS_METER = 29708.0          # nominal: 8400 / (pi 0.09)
 BASE = 0.30                    # configured base width
-R_NOM = 0.045
-TICKS_PER_RAD = TICKS_METER * R_NOM
+TICKS_PER_RAD = TICKS_METER * NOMINAL_RADIUS
 
 
-class KinematicRobot:
-    def __init__(self, scale_left=1.03, scale_right=0.99, base_true=BASE * 1.04, lag=0.1, stuck=False):
-        self.r = (R_NOM * scale_left, R_NOM * scale_right)
-        self.base_true, self.lag, self.stuck = base_true, lag, stuck
-        self.t = 0.0
-        self.pose = np.zeros(3)
-        self.angle = [0.0, 0.0]          # wheel angles, rad
-        self.omega = [0.0, 0.0]          # wheel speeds, rad/s
-        self.cmd = (0.0, 0.0)
-        self.commands = []
-
-    def now(self):
-        return self.t
-
-    def drive(self, v, w):
-        self.cmd = (v, w)
-        self.commands.append((self.t, v, w))
-
-    def counts(self):
-        return tuple(int(math.floor(a * TICKS_PER_RAD)) for a in self.angle)
-
-    def snapshot(self):
-        return self.pose.copy()
-
-    def wait(self, seconds):
-        n = max(1, round(seconds / 0.005))
-        dt = seconds / n
-        v, w = self.cmd
-        # twist_to_motors with the configured base; the PIDs hold each wheel's angular speed
-        target = [(v - w * BASE / 2) / R_NOM, (v + w * BASE / 2) / R_NOM]
-        if self.stuck:
-            target = [0.0, 0.0]
-        for _ in range(n):
-            a = 1 - math.exp(-dt / self.lag)
-            for s in (0, 1):
-                self.omega[s] += (target[s] - self.omega[s]) * a
-                self.angle[s] += self.omega[s] * dt
-            dl, dr = self.omega[0] * self.r[0] * dt, self.omega[1] * self.r[1] * dt
-            x, y, th = self.pose
-            d, dth = (dl + dr) / 2, (dr - dl) / self.base_true
-            self.pose = np.array([x + d * math.cos(th + dth / 2), y + d * math.sin(th + dth / 2), th + dth])
-            self.t += dt
-
-
-class TruthReference:
-    name = "truth"
-
-    def __init__(self, noise_m=0.0, noise_rad=0.0, seed=0):
-        self.noise_m, self.noise_rad = noise_m, noise_rad
-        self.rng = np.random.default_rng(seed)
-
-    def measure(self, kind, before, after, guess):
-        x0, y0, th0 = before
-        dx, dy = after[0] - x0, after[1] - y0
-        c, s = math.cos(th0), math.sin(th0)
-        yaw = after[2] - th0
-        n = self.rng.normal(0, 1, 3) * (self.noise_m, self.noise_m, self.noise_rad)
-        return Motion(c * dx + s * dy + n[0], -s * dx + c * dy + n[1], yaw + n[2])
+def KinematicRobot(scale_left=1.03, scale_right=0.99, base_true=BASE * 1.04, **kw):
+    return kr.KinematicRobot(scale_left, scale_right, base_true, BASE, **kw)
 
 
 class Ui:
@@ -118,8 +62,8 @@ def test_recovers_wheel_radii_and_base_within_half_a_percent():
     assert not rep.aborted, ui.lines
     c = rep.calibration
     # true ticks per metre of each wheel: ticks per rad / true radius
-    assert c.ticks_meter_left == pytest.approx(TICKS_PER_RAD / robot.r[0], rel=0.005)
-    assert c.ticks_meter_right == pytest.approx(TICKS_PER_RAD / robot.r[1], rel=0.005)
+    assert c.ticks_meter_left == pytest.approx(TICKS_PER_RAD / robot.radius[0], rel=0.005)
+    assert c.ticks_meter_right == pytest.approx(TICKS_PER_RAD / robot.radius[1], rel=0.005)
     assert c.base_width == pytest.approx(robot.base_true, rel=0.005)
     # the verify squares close: UMBmark's E_max at least 10x smaller
     assert rep.e_max_before > 0.05
@@ -128,6 +72,17 @@ def test_recovers_wheel_radii_and_base_within_half_a_percent():
     d = rep.to_dict()
     assert d["result"]["base_width"] == pytest.approx(robot.base_true, rel=0.005)
     assert set(d["steps"]) == {"straight", "turns", "umbmark", "verify"}
+
+
+def test_the_report_is_plain_yaml_with_numpy_references():
+    """The scan reference answers in numpy floats; the report must still dump."""
+    class NumpyRef(TruthReference):
+        def measure(self, kind, before, after, guess):
+            m = super().measure(kind, before, after, guess)
+            return Motion(np.float64(m.x), np.float64(m.y), np.float64(m.yaw))
+    rep, _robot, _ui = run(reference=NumpyRef(), options=CalibrationOptions(verify=False))
+    text = yaml.safe_dump(rep.to_dict())
+    assert yaml.safe_load(text)["steps"]["umbmark"]["runs"][0]["clockwise"] is True
 
 
 def test_a_correct_robot_keeps_its_parameters():
@@ -143,8 +98,8 @@ def test_reference_noise_of_a_few_millimetres_still_gives_half_a_percent():
                          options=CalibrationOptions(runs=2, verify=False))
     c = rep.calibration
     assert not rep.aborted, ui.lines
-    for got, want in ((c.ticks_meter_left, TICKS_PER_RAD / robot.r[0]),
-                      (c.ticks_meter_right, TICKS_PER_RAD / robot.r[1]), (c.base_width, robot.base_true)):
+    for got, want in ((c.ticks_meter_left, TICKS_PER_RAD / robot.radius[0]),
+                      (c.ticks_meter_right, TICKS_PER_RAD / robot.radius[1]), (c.base_width, robot.base_true)):
         assert got == pytest.approx(want, rel=0.005)
 
 
@@ -211,7 +166,7 @@ def test_bad_options(kw, match):
 
 
 def test_unplugged_ticks_abort_before_moving():
-    class NoTicks(KinematicRobot):
+    class NoTicks(kr.KinematicRobot):
         def counts(self):
             return None
     rep, robot, _ui = run(NoTicks())

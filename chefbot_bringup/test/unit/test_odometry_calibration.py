@@ -338,7 +338,7 @@ GOOD = square_end_error(1.0, B, 1.004, 1.01, True), square_end_error(1.0, B, 1.0
     ([GOOD[0]], [GOOD[1]], 0.0, B, "side_m"),
     ([GOOD[0]], [GOOD[1]], -1.0, B, "side_m"),
     ([GOOD[0]], [GOOD[1]], 1.0, math.nan, "base_width_m"),
-    ([(2.0, 0.1)], [(1.5, -0.3)], 4.0, B, "not closed: end errors of 2 m on a 4 m square"),
+    ([(3.5, 0.1)], [(1.5, -0.3)], 4.0, B, "not closed: end errors of 3.5 m on a 4 m square"),
     ([(-45.0, -50.0)], [(45.0, -40.0)], 1.0, B, "not closed"),       # millimetres
     ([GOOD[1]], [GOOD[0]], 1.0, B, "CW and CCW"),                     # swapped
     ([(GOOD[0][0], -GOOD[0][1])], [(GOOD[1][0], -GOOD[1][1])], 1.0, B, "start frame"),  # y to the right

@@ -395,3 +395,34 @@ class SteppedSerial:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class BuilderHands:
+    """The builder at an emulated robot, for a guided check's questions (the ``Ui`` of
+    ``chefbot_bringup.bringup_procedure``): lines said are kept in ``lines``; every question is
+    answered at once (Enter); one that asks to turn the LEFT or RIGHT wheel first turns that wheel
+    of ``board`` one full turn forward, by hand (motors off, through the encoder wiring faults)."""
+
+    def __init__(self, board: VirtualBoard) -> None:
+        self.board = board
+        self.lines: list[str] = []
+        self.questions: list[str] = []
+        self._pending: str | None = None
+
+    def say(self, text: str) -> None:
+        """Keep a line."""
+        self.lines.append(text)
+
+    def ask(self, text: str) -> None:
+        """Do what the question asks and press Enter."""
+        self.questions.append(text)
+        for side, name in ((LEFT, "LEFT"), (RIGHT, "RIGHT")):
+            if f"the {name} wheel" in text:
+                for _ in range(100):
+                    self.board.turn_wheel(side, 2 * math.pi / 100)
+        self._pending = ""
+
+    def answer(self) -> str | None:
+        """The Enter of the last question, once."""
+        a, self._pending = self._pending, None
+        return a
