@@ -128,11 +128,12 @@ class FirmwareDrive:
 
     ``link``: symlink to the pty's slave end ('' = none; the path is then only
     in :attr:`pty_path`).  ``wheel_angles``: the wheel joint angles (rad,
-    robot-forward positive, left then right) at the start.
+    robot-forward positive, left then right) at the start.  ``faults``: a
+    ``chefbot_firmware.virtual_board.BuildFaults``, the robot wired wrong (None: right).
     """
 
     def __init__(self, link: str, motor: DcMotor, wheel_angles: Sequence[float],
-                 battery_volts: float = DEFAULT_BATTERY_VOLTS) -> None:
+                 battery_volts: float = DEFAULT_BATTERY_VOLTS, faults=None) -> None:
         try:
             from chefbot_firmware.virtual_board import VirtualBoard
         except ImportError as e:  # pragma: no cover - chefbot_bringup is a dependency
@@ -144,7 +145,7 @@ class FirmwareDrive:
             if not os.path.isdir(parent):
                 raise FirmwareDriveError(f"pty_link '{link}': directory {parent} does not exist")
         try:
-            self.board = VirtualBoard(link or None, model_wheels=False)
+            self.board = VirtualBoard(link or None, model_wheels=False, faults=faults)
         except OSError as e:
             raise FirmwareDriveError(f"cannot open a pseudo-terminal (pty_link '{link}'): {e}") from e
         except Exception as e:  # FirmwareLibraryMissing and friends: say what to build
@@ -167,9 +168,9 @@ class FirmwareDrive:
         return self.board.fw.drive_state
 
     def duties(self) -> tuple[float, float]:
-        """Signed duties (−1..1, robot-forward) the motor driver applies now, left and right."""
-        fw = self.board.fw
-        return fw.wheel_duty(0), fw.wheel_duty(1)
+        """Signed duties (−1..1, robot-forward) that reach the left and right motors now: the driver's
+        outputs through the robot's wiring (``faults``: swapped leads or channels; none: the firmware's wish)."""
+        return self.board.motor_duty(0), self.board.motor_duty(1)
 
     # ------------------------------------------------------------ stepping
     def motor_commands(self, speeds: Sequence[float]) -> list[tuple[float, float]]:

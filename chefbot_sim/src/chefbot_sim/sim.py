@@ -73,6 +73,8 @@ class SimOptions:
     solver_iterations: int = 20        # pybullet constraint-solver iterations per physics step
     drive: str = "plugin"              # plugin | firmware
     pty_link: str = ""                 # firmware mode: symlink to the emulated LaunchPad's pty ('' = none)
+    build_faults: str = ""             # firmware mode: wiring faults of the emulated robot, comma-separated
+                                       # (chefbot_firmware.virtual_board.FAULT_NAMES, e.g. left_leads_swapped)
     battery_volts: float = 12.4        # firmware mode without battery_model: constant voltage the board measures (V)
     battery_model: bool = True         # firmware mode: the board measures the discharge model (battery.py)
     battery_chemistry: str = "sla"     # sla | lipo3s | nimh10 (open-circuit voltage curve)
@@ -124,6 +126,14 @@ class SimOptions:
             raise SimConfigError(f"drive must be one of {', '.join(DRIVES)}, got {self.drive!r}")
         if not (math.isfinite(self.battery_volts) and self.battery_volts >= 0):
             raise SimConfigError(f"battery_volts must be a finite number >= 0, got {self.battery_volts!r}")
+        if self.build_faults.strip():
+            if self.drive != "firmware":
+                raise SimConfigError(f"build_faults ({self.build_faults!r}) needs drive:=firmware: the faults sit "
+                                     "between the emulated board and the motors and encoders")
+            try:
+                self.faults()
+            except ValueError as exc:
+                raise SimConfigError(f"build_faults: {exc}") from None
         try:
             self.imu_drift_config()
             self.battery_config()
@@ -151,6 +161,14 @@ class SimOptions:
                 self.lidar_config().validate()
             except ValueError as e:
                 raise SimConfigError(str(e)) from None
+
+    def faults(self):
+        """The firmware drive's :class:`chefbot_firmware.virtual_board.BuildFaults` (None: built right)."""
+        names = [n.strip() for n in self.build_faults.split(",") if n.strip()]
+        if not names:
+            return None
+        from chefbot_firmware.virtual_board import BuildFaults
+        return BuildFaults.from_names(names)
 
     @property
     def wheel_noise(self) -> WheelNoise:
@@ -331,7 +349,7 @@ class Simulator:
             try:
                 self.motor = self._motor_model(urdf_xml)
                 self.firmware = FirmwareDrive(self.options.pty_link, self.motor, self.s.wheel_prev,
-                                              self._start_volts())
+                                              self._start_volts(), faults=self.options.faults())
             except Exception:
                 self.bullet.close()
                 raise

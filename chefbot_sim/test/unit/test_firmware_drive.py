@@ -251,6 +251,38 @@ def test_bad_firmware_options(urdf, tmp_path):
         Simulator(urdf, EMPTY, options=SimOptions(drive="firmware", battery_volts=-1.0))
 
 
+def test_build_faults_wire_the_simulated_robot_wrong(urdf, tmp_path):
+    """build_faults: the left motor's leads swapped and the right encoder reversed -- commanded forward,
+    the robot turns (left wheel backwards) and the right counter runs backwards; the board's own
+    wish (wheel_duty) is unchanged."""
+    opts = SimOptions(seed=1, drive="firmware", pty_link=str(tmp_path / "lp"),
+                      build_faults="left_leads_swapped, right_encoder_reversed")
+    sim = Simulator(urdf, EMPTY, options=opts)
+    link = Link(str(tmp_path / "lp"))
+    try:
+        fw = sim.firmware
+        yaw0 = sim.ground_truth()["yaw"]
+        count0 = [fw.board.fw.encoder_count(side) for side in (0, 1)]
+        drive_with_commands(sim, link, 400, 400, 1.5)
+        left, right = fw.duties()
+        assert left < 0 < right and fw.board.fw.wheel_duty(0) > 0
+        assert wrap_yaw(sim.ground_truth()["yaw"] - yaw0) > 0.3       # spinning left on the spot
+        assert fw.board.fw.encoder_count(0) - count0[0] < -500         # the left wheel really turned back
+        assert fw.board.fw.encoder_count(1) - count0[1] < -500         # the right one forward, counted back
+    finally:
+        link.close()
+        sim.close()
+    with pytest.raises(SimConfigError, match="build_faults.*valid"):
+        Simulator(urdf, EMPTY, options=SimOptions(drive="firmware", pty_link=str(tmp_path / "lp2"),
+                                                  build_faults="left_leads_crossed"))
+    with pytest.raises(SimConfigError, match="drive:=firmware"):
+        Simulator(urdf, EMPTY, options=SimOptions(build_faults="motors_swapped"))
+
+
+def wrap_yaw(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
+
+
 def test_close_unplugs(urdf, tmp_path):
     link = tmp_path / "lp"
     sim = Simulator(urdf, EMPTY, options=SimOptions(drive="firmware", pty_link=str(link)))
