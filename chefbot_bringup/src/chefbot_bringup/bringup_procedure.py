@@ -40,6 +40,7 @@ from chefbot_bringup import bringup_check as bc
 from chefbot_bringup import launchpad_protocol as proto
 from chefbot_bringup import pid_autotune
 from chefbot_bringup.launchpad import LineAssembler, wrap_int32
+from chefbot_bringup.odometry_calibration import load_calibration_yaml
 from chefbot_bringup.wheel_pid import PidConfig, WheelController, WheelVelocityEstimator
 
 COMMAND_MAX = proto.COMMAND_MAX
@@ -620,14 +621,7 @@ def merge_gains(existing: str | None, gains: pid_autotune.Gains) -> str:
     """The calibration YAML ``existing`` (None: no file yet) with ``lwheel_pid``/``rwheel_pid`` Kp, Ki, Kd
     set to ``gains``; every other key kept. Raises ValueError if ``existing`` is not a YAML mapping
     (a corrupt file is not overwritten)."""
-    data = {}
-    if existing is not None and existing.strip():
-        try:
-            data = yaml.safe_load(existing)
-        except yaml.YAMLError as exc:
-            raise ValueError(f"not valid YAML ({exc}); fix or remove it") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"not a YAML mapping but a {type(data).__name__}; fix or remove it")
+    data = load_calibration_yaml(existing)
     for wheel in ("lwheel_pid", "rwheel_pid"):
         section = data.get(wheel)
         if section is None:

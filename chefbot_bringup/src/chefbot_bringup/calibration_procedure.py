@@ -444,15 +444,7 @@ def merge_calibration(existing: str | None, cal: oc.Calibration) -> str:
     """``cal.to_yaml()`` followed by every other key of the calibration YAML ``existing`` (None: no file),
     e.g. the wheel PID gains ``bringup_check`` wrote; raises ValueError if ``existing`` is not a YAML
     mapping (a corrupt file is not overwritten)."""
-    kept: dict = {}
-    if existing is not None and existing.strip():
-        try:
-            data = yaml.safe_load(existing)
-        except yaml.YAMLError as exc:
-            raise ValueError(f"not valid YAML ({exc}); fix or remove it") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"not a YAML mapping but a {type(data).__name__}; fix or remove it")
-        kept = {k: v for k, v in data.items() if k not in CALIBRATION_KEYS}
+    kept = {k: v for k, v in oc.load_calibration_yaml(existing).items() if k not in CALIBRATION_KEYS}
     text = cal.to_yaml()
     if kept:
         text += "# kept from the file before\n" + yaml.safe_dump(kept, sort_keys=False)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
 from scipy.optimize import least_squares
 
 from chefbot_bringup.odometry import integrate_arc
@@ -332,6 +333,20 @@ class Calibration:
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_text(self.to_yaml())
         return p
+
+
+def load_calibration_yaml(existing: str | None) -> dict:
+    """The mapping in a calibration YAML's text (None or blank: an empty one), to update and write back;
+    ValueError if it is not a YAML mapping (a corrupt file is not to be overwritten)."""
+    if existing is None or not existing.strip():
+        return {}
+    try:
+        data = yaml.safe_load(existing)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"not valid YAML ({exc}); fix or remove it") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"not a YAML mapping but a {type(data).__name__}; fix or remove it")
+    return data
 
 
 def calibrate(ticks_meter: float, base_width: float, straight_factor: float = 1.0, turn_factor: float = 1.0,
