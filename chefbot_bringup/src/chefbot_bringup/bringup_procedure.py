@@ -121,6 +121,16 @@ class Sample:
     right: int
     board_t: float | None = None
 
+    @property
+    def clock(self) -> float:
+        """The board's cycle clock when known, else the arrival: arrival times carry the link's jitter
+        (USB, a loaded PC), which a speed estimate turns into a ripple of several per cent."""
+        return self.t if self.board_t is None else self.board_t
+
+    def count(self, side: str) -> int:
+        """The counter of wheel ``side`` ("left" / "right")."""
+        return self.left if side == "left" else self.right
+
 
 @dataclass
 class StepReport:
@@ -129,6 +139,7 @@ class StepReport:
     name: str
     verdicts: list[bc.Verdict] = field(default_factory=list)
     data: dict = field(default_factory=dict)
+    records: dict = field(default_factory=dict, repr=False)   # a pid step's (t, speed) per wheel; not reported
 
     @property
     def ok(self) -> bool:
@@ -281,24 +292,24 @@ class Board:
 
 @dataclass(frozen=True)
 class OpenLoop:
-    """One motor run's record while commanded: the sample before, the command's delay after it, the command."""
+    """One motor run's record while commanded: the samples (the one before the command first), the
+    command's delay after that first sample, the command."""
 
-    start: Sample
-    delay: float              # s from the start sample's arrival to the command going out
+    delay: float              # s from the first sample's arrival to the command going out
     command: float            # cmd units
-    samples: list[Sample]     # the start sample and every encoder line while commanded
+    samples: list[Sample]     # the sample before the command and every encoder line while commanded
 
     def speed_record(self, side: str, pid: PidConfig) -> tuple[list[float], list[float]]:
         """(t from the command, wheel speed) through the loop's own estimator, on the board's clock."""
         est = WheelVelocityEstimator(pid)
-        clock = [s.board_t if s.board_t is not None else s.t for s in self.samples]
-        t_cmd = clock[0] + self.delay
         first = self.samples[0]
-        rest_history(est.add_reading, first.left if side == "left" else first.right, clock[0], pid)
+        t_cmd = first.clock + self.delay
+        rest_history(est.add_reading, first.count(side), first.clock, pid)
         t: list[float] = []
         v: list[float] = []
-        for smp, c in zip(self.samples[1:], clock[1:], strict=True):
-            est.add_reading(smp.left if side == "left" else smp.right, c)
+        for smp in self.samples[1:]:
+            c = smp.clock
+            est.add_reading(smp.count(side), c)
             if c >= t_cmd and (not t or c - t_cmd > t[-1]):
                 t.append(c - t_cmd)
                 v.append(est.velocity(c))
@@ -356,8 +367,7 @@ class BringupCheck:
 
     def _run_steps(self) -> None:
         board = self.board_step()
-        if not any(v.ok for v in board.verdicts if v.code in ("status_rate",)) and \
-                any(v.code == "no_status" for v in board.verdicts):
+        if any(v.code == "no_status" for v in board.verdicts):
             self.report.aborted = "no status lines from the board: the motor steps need its encoder counts"
             self.ui.say(f"ABORTED: {self.report.aborted}")
             return
@@ -432,7 +442,7 @@ class BringupCheck:
             return b.link.now() - state["since"] >= self.opt.still_seconds
         b.pump(self.opt.still_timeout, still)
 
-    def motor_run(self, side: str, duty: float) -> tuple[bc.MotorRun, list[Sample]]:
+    def motor_run(self, side: str, duty: float) -> bc.MotorRun:
         """One motor alone at ``duty`` for run_seconds, counted until the wheels stand still."""
         b = self.board
         self._wait_still()
@@ -452,8 +462,8 @@ class BringupCheck:
         end = b.counts
         run = bc.MotorRun(side, duty, seconds, count_delta(start.left, end.left), count_delta(start.right, end.right))
         # the commanded part, for the autotune's model fit; the command went out t0 - start.t after the start sample
-        self.open_loop[(side, duty > 0)] = OpenLoop(start, t0 - start.t, value, samples[:n_commanded])
-        return run, samples
+        self.open_loop[(side, duty > 0)] = OpenLoop(t0 - start.t, value, samples[:n_commanded])
+        return run
 
     def hand_turn(self, side: str) -> bc.HandTurn | None:
         """Ask the user to turn wheel ``side`` one turn forward; None if unanswered."""
@@ -474,14 +484,11 @@ class BringupCheck:
         self.ui.say(f"2/3 motors: robot on blocks, wheels free; each motor alone at {self.opt.duty:.0%} duty, "
                     f"forward then backward, {self.opt.run_seconds:.1f} s each")
         runs: list[bc.MotorRun] = []
-        records: dict[str, list[Sample]] = {}
         for side in bc.SIDES:
             for sign, word in ((1, "forward"), (-1, "backward")):
                 self.ui.say(f"  {side} motor {word} ...")
-                run, samples = self.motor_run(side, sign * self.opt.duty)
+                run = self.motor_run(side, sign * self.opt.duty)
                 runs.append(run)
-                if sign > 0:
-                    records[side] = samples
                 self.ui.say(f"    counts: left {run.left_counts:+d}, right {run.right_counts:+d}")
         turns = []
         if self.opt.hand_turns:
@@ -491,7 +498,6 @@ class BringupCheck:
                     self.ui.say(f"    counts: left {t.left_counts:+d}, right {t.right_counts:+d}")
                     turns.append(t)
         verdicts = bc.diagnose_motors(runs, turns, self.expect)
-        self.records = records
         data = {"runs": [{"side": r.side_commanded, "duty": r.duty, "seconds": round(r.seconds, 3),
                           "left_counts": r.left_counts, "right_counts": r.right_counts} for r in runs],
                 "hand_turns": [{"side": t.side, "left_counts": t.left_counts, "right_counts": t.right_counts}
@@ -508,18 +514,13 @@ class BringupCheck:
         t0 = [b.link.now()]      # the step's start on the samples' clock (set from the last sample below)
         cmd = {"left": 0.0, "right": 0.0}
 
-        def clock(smp: Sample) -> float:
-            # the board's cycle clock: arrival times carry the link's jitter (USB, a loaded PC), which
-            # the speed estimate would turn into a ripple of several per cent
-            return smp.t if smp.board_t is None else smp.board_t
-
         def on_sample(smp: Sample) -> None:
-            t = clock(smp)
+            t = smp.clock
             if rec["left"][0] and t - t0[0] <= rec["left"][0][-1]:
                 return                               # not a new cycle
             for s in bc.SIDES:
                 c = ctrl[s]
-                c.add_reading(smp.left if s == "left" else smp.right, t)
+                c.add_reading(smp.count(s), t)
                 c.set_target(self.opt.pid_target)
                 out = c.tick(t)
                 if out.motor_cmd is not None:
@@ -529,9 +530,9 @@ class BringupCheck:
             b.command(cmd["left"], cmd["right"])
 
         if b.counts is not None:
-            t0[0] = clock(b.counts)
+            t0[0] = b.counts.clock
             for s in bc.SIDES:
-                rest_history(ctrl[s].add_reading, b.counts.left if s == "left" else b.counts.right, t0[0], pid)
+                rest_history(ctrl[s].add_reading, b.counts.count(s), t0[0], pid)
         b.on_sample = on_sample
         try:
             b.pump(self.opt.pid_seconds)
@@ -547,7 +548,6 @@ class BringupCheck:
         self.ui.say(f"{title}: both wheels' speed loops (Kp {pid.kp:.0f}, Ki {pid.ki:.0f}, Kd {pid.kd:.0f}) step to "
                     f"{self.opt.pid_target:.2f} m/s for {self.opt.pid_seconds:.1f} s")
         rec = self.step_record(pid)
-        self.last_steps = rec
         verdicts: list[bc.Verdict] = []
         data: dict = {"gains": {"Kp": pid.kp, "Ki": pid.ki, "Kd": pid.kd}, "target": self.opt.pid_target}
         for s in bc.SIDES:
@@ -561,14 +561,13 @@ class BringupCheck:
             data[s] = {"rise_time": None if res.rise_time is None else round(res.rise_time, 3),
                        "overshoot_pct": round(res.overshoot_pct, 1),
                        "steady_state_error": round(res.steady_state_error, 4), "oscillations": res.oscillations}
-        return self._show(StepReport(name, verdicts, data))
+        return self._show(StepReport(name, verdicts, data, rec))
 
     # ---------------------------------------------------------------- 3b. autotune (optional)
     def autotune_step(self, current: StepReport) -> StepReport:
         """Fit each wheel's forward run (FOPDT), propose PI gains for the mean model, step the loops
-        with them and compare with the current gains' step (pid_autotune)."""
+        with them and compare with the current gains' step, ``current`` (pid_autotune)."""
         self.ui.say("autotune: fitting each wheel's forward run, proposing PI gains")
-        current_steps = self.last_steps
         models: dict[str, pid_autotune.Fopdt] = {}
         verdicts: list[bc.Verdict] = []
         for s in bc.SIDES:
@@ -593,7 +592,7 @@ class BringupCheck:
         tuned = self.pid_step(replace(self.pid, kp=gains.kp, ki=gains.ki, kd=gains.kd), name="pid_autotuned")
         better = []
         for s in bc.SIDES:
-            (tc, vc), (tn, vn) = current_steps[s], self.last_steps[s]
+            (tc, vc), (tn, vn) = current.records[s], tuned.records[s]
             if len(tc) < 5 or len(tn) < 5:
                 continue
             cmp = pid_autotune.compare_steps(tc, self.opt.pid_target, vc, np.interp(tc, tn, vn))
