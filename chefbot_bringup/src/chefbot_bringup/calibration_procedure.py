@@ -259,13 +259,13 @@ class OdometryCalibration:
         self.ui.say(f"calibration with the {self.ref.name} reference: ticks_meter {self.ticks_meter0:.1f}, "
                     f"base_width {self.base_width0:.4f} m; keep {o.side + 0.5:.1f} m free around the robot")
         end = self.robot.now() + 10.0
-        while self._counts() is None and self.robot.now() < end:
+        while self.robot.counts() is None and self.robot.now() < end:
             self.robot.wait(self.opt.control_period)
-        if self._counts() is None:
+        if self.robot.counts() is None:
             raise CalibrationError("no wheel ticks (lwheel/rwheel) for 10 s: is robot_standalone.launch running?")
         straight = self.straight_step()
         turn = self.turn_step()
-        cw, ccw = self.squares("umbmark", self.odo.base_width)
+        cw, ccw = self.squares("umbmark")
         self.report.e_max_before = e_max(cw, ccw)
         umb = oc.umbmark(cw, ccw, o.side, self.odo.base_width)
         cal = oc.calibrate(self.ticks_meter0, self.base_width0, straight, turn, umb)
@@ -275,27 +275,24 @@ class OdometryCalibration:
                     f"(before {self.ticks_meter0:.1f}, {self.base_width0:.4f} m)")
         if o.verify:
             self.odo = WheelOdometry(cal.ticks_meter_left, cal.ticks_meter_right, cal.base_width)
-            cw2, ccw2 = self.squares("verify", cal.base_width)
+            cw2, ccw2 = self.squares("verify")
             self.report.e_max_after = e_max(cw2, ccw2)
             self.ui.say(f"UMBmark E_max: {self.report.e_max_before * 1000:.0f} mm before, "
                         f"{self.report.e_max_after * 1000:.0f} mm after")
 
     # ---------------------------------------------------------------- measuring one motion
-    def _counts(self) -> tuple[int, int] | None:
-        return self.robot.counts()
-
     def _measure(self, kind: str, move: Callable[[], None]) -> tuple[Motion, Motion]:
         """(odometry, reference) of one motion between two standstills."""
         self.robot.wait(self.opt.settle)
         before = self.robot.snapshot()
-        start = self._counts()
+        start = self.robot.counts()
         if start is None:
             raise CalibrationError("no wheel ticks")
         self.odo.reset(start)
         move()
         self.robot.drive(0.0, 0.0)
         self._wait_still()
-        odom = self.odo.update(self._counts())
+        odom = self.odo.update(self.robot.counts())
         after = self.robot.snapshot()
         try:
             true = self.ref.measure(kind, before, after, odom)
@@ -305,10 +302,10 @@ class OdometryCalibration:
 
     def _wait_still(self) -> None:
         """Wait until no tick changed for ``settle`` s (at most 5 s)."""
-        last, since, end = self._counts(), self.robot.now(), self.robot.now() + 5.0
+        last, since, end = self.robot.counts(), self.robot.now(), self.robot.now() + 5.0
         while self.robot.now() < end:
             self.robot.wait(self.opt.control_period)
-            c = self._counts()
+            c = self.robot.counts()
             if c != last:
                 last, since = c, self.robot.now()
             elif self.robot.now() - since >= self.opt.settle:
@@ -319,9 +316,9 @@ class OdometryCalibration:
         """Run ``command(pose) -> (v, w)`` every control period until it returns None."""
         r = self.robot
         end = r.now() + limit
-        last_counts, moved_at = self._counts(), r.now()
+        last_counts, moved_at = self.robot.counts(), r.now()
         while True:
-            c = self._counts()
+            c = self.robot.counts()
             pose = self.odo.update(c)
             if c != last_counts:
                 last_counts, moved_at = c, r.now()
@@ -417,10 +414,11 @@ class OdometryCalibration:
         self.ui.say(f"  base_width x {factor:.4f} -> {self.odo.base_width:.4f} m")
         return factor
 
-    def squares(self, name: str, base_width: float) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
-        """UMBmark runs: per run the true stop minus start (start frame) minus where odometry believes it stopped
-        (first order: the square's own end tolerance does not count as odometry error)."""
-        o = self.opt
+    def squares(self, name: str) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+        """UMBmark runs with the current parameters: per run the true stop minus start (start frame) minus
+        where odometry believes it stopped (first order: the square's own end tolerance does not count as
+        odometry error)."""
+        o, base_width = self.opt, self.odo.base_width
         self.ui.say(f"{'3/3 umbmark' if name == 'umbmark' else 'verify'}: a {o.side:.2f} m square clockwise and "
                     f"counter-clockwise, {o.runs} run(s) each (base_width {base_width:.4f} m)")
         out: dict[bool, list[tuple[float, float]]] = {True: [], False: []}

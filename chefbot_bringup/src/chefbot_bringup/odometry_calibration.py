@@ -28,7 +28,7 @@ E_d 1.04 over 2 m).  With wheels that unequal repeat step 1 after step 3.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -347,6 +347,19 @@ def load_calibration_yaml(existing: str | None) -> dict:
     if not isinstance(data, dict):
         raise ValueError(f"not a YAML mapping but a {type(data).__name__}; fix or remove it")
     return data
+
+
+def update_calibration_file(path: str | Path, merge: Callable[[str | None], str]) -> Path:
+    """Rewrite the calibration YAML at ``path`` with ``merge(its text, or None if there is no file)``,
+    creating its directory; the new text replaces the old in one rename, so an interrupted write
+    leaves the old file. OSError from the file system, ValueError from ``merge`` (a corrupt file)."""
+    p = Path(path)
+    text = merge(p.read_text() if p.exists() else None)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(p)
+    return p
 
 
 def calibrate(ticks_meter: float, base_width: float, straight_factor: float = 1.0, turn_factor: float = 1.0,

@@ -398,3 +398,23 @@ def test_calibration_without_steps_keeps_the_values():
                       base_width_before=B)
     assert cal.ticks_meter == pytest.approx(TPM, rel=1e-12)
     assert "UMBmark" not in cal.to_yaml()
+
+
+def test_update_calibration_file_merges_and_leaves_a_corrupt_file_alone(tmp_path):
+    from chefbot_bringup.odometry_calibration import load_calibration_yaml, update_calibration_file
+
+    path = tmp_path / "new" / "calibration.yaml"
+
+    def add(key, value):
+        def merge(old):
+            data = load_calibration_yaml(old)
+            data[key] = value
+            return yaml.safe_dump(data)
+        return merge
+    assert update_calibration_file(path, add("base_width", 0.31)) == path
+    update_calibration_file(path, add("ticks_meter", 29950.0))
+    assert yaml.safe_load(path.read_text()) == {"base_width": 0.31, "ticks_meter": 29950.0}
+    path.write_text("[1, 2")
+    with pytest.raises(ValueError, match="fix or remove it"):
+        update_calibration_file(path, add("base_width", 0.3))
+    assert path.read_text() == "[1, 2" and not path.with_name(path.name + ".tmp").exists()
