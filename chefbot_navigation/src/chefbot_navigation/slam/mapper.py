@@ -58,6 +58,13 @@ LARGE_CORRECTION_YAW = math.radians(3.0)
 # a loop match whose best pose lies on the search window's edge is searched for again around itself this
 # often; still on the edge, it has no maximum and is dropped (Slam._close_loop)
 LOOP_RECENTRES = 2
+# a map cell this sure (log-odds; two net hits) is an obstacle the robot cannot drive into (Slam._stop_at_obstacles)
+CONTACT_LOG_ODDS = 1.5
+# an unmatched scan that fits the last keyframe's scan this well where the robot has not moved, and better by this
+# than where the odometry says it went, means the wheels slipped on the spot (Slam._stalled); a face 0.1 m off
+# scores ~0.36 at sigma 0.07, a wall along the motion fits both and holds nothing
+STALL_FIT = 0.6
+STALL_GAIN = 0.2
 # how Slam.stats.events lines begin (tools/slam_workflow.py counts them by these)
 EVENT_CLOSURE = "loop closure keyframe"
 EVENT_DROPPED = "loop match keyframe"
@@ -145,6 +152,15 @@ class SlamConfig:
     refine_max_spread: float = 0.05      # m, an ambiguous refinement match is not used (as loop_max_spread)
     footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
     #                                      hides it; 0: off)
+    imu_slip_yaw: float = 0.05           # [rad] a step whose wheel turn differs from the IMU's by more than this takes
+    #                                      the IMU's (the body swung round by a collision, a wheel slipping; 0: the
+    #                                      IMU is not used)
+    contact_radius: float = 0.12         # m; an unmatched step's odometry is stopped where a disk of this radius
+    #                                      round the base would move into a mapped obstacle (wheels slipping against
+    #                                      a table the scan cannot see; a little under the robot's radius; 0: off)
+    bumper_hold: bool = True             # a step taken with the bumper pressed starts its match from "no motion"
+    #                                      and keeps its position if unmatched (the wheels push an obstacle the
+    #                                      scan may not see; the heading still turns)
     l_occ: float = 0.9                   # log-odds added per hit
     l_free: float = -0.7                 # log-odds added per pass
     l_clamp: float = 4.0                 # |log-odds| read out at most (clamp at read time)
@@ -167,7 +183,8 @@ class SlamConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
-                     "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip"):
+                     "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip",
+                     "contact_radius", "imu_slip_yaw"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -193,6 +210,7 @@ class Keyframe:
     scan: Scan
     travel: float
     integrated: Pose2D | None = None      # pose whose ray-cast is in the grid
+    heading: float | None = None          # IMU heading (rad, unwrapped; imu_heading) at t, None without an IMU
 
 
 @dataclass
@@ -223,6 +241,11 @@ class SlamStats:
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
     distance_scale: float = 1.0          # learned odometry distance scale in use (1: none yet)
     drift_per_m: float = 0.0             # rad/m learned heading drift in use (0: none yet)
+    imu_turns: int = 0                   # steps whose turn came from the IMU, not the wheels (imu_slip_yaw)
+    contact_stops: int = 0               # unmatched steps stopped at a mapped obstacle (_stop_at_obstacles)
+    stalls: int = 0                      # unmatched steps whose scan showed no motion at all (_stalled)
+    bumper_holds: int = 0                # steps whose prior was "no motion" because the bumper was pressed
+    slip_held: float = 0.0               # m of odometry the stops and stalls did not believe (wheels slipping)
     refine_edges: int = 0                # edges of the last refinement pass
     last_score: float = 0.0
     events: list[str] = field(default_factory=list)
@@ -246,6 +269,8 @@ class Slam:
         self._pending: _Closure | None = None   # a held loop match waiting for a second one (_close_loop)
         self._outliers_logged: set[tuple[int, int]] = set()
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
+        self._held: Pose2D | None = None   # map->odom holding the live pose at an obstacle between keyframes
+        self._stall = False           # the last keyframe step slipped on the spot (_stalled)
         self.bias = OdometryBias(BiasLimits(**{f.name: getattr(c, f.name) for f in fields(BiasLimits)}))
 
     # -- queries ------------------------------------------------------------------------------
@@ -258,6 +283,8 @@ class Slam:
         """Transform map->odom implied by the latest keyframe (identity before the first scan)."""
         if not self.keyframes:
             return Pose2D()
+        if self._held is not None:
+            return self._held
         return self.graph.poses[-1].compose(self.keyframes[-1].odom.inverse())
 
     def trajectory(self) -> list[tuple[float, Pose2D]]:
@@ -274,27 +301,64 @@ class Slam:
         return clamped.to_occupancy()
 
     # -- update -------------------------------------------------------------------------------
-    def add_scan(self, t: float, scan: Scan, odom: Pose2D) -> Pose2D:
-        """Process one scan (base frame) taken at ``t`` s with the base at ``odom``; returns the map pose."""
+    def add_scan(self, t: float, scan: Scan, odom: Pose2D, heading: float | None = None,
+                 contact: bool = False) -> Pose2D:
+        """Process one scan (base frame) taken at ``t`` s with the base at ``odom``; returns the map pose.
+
+        ``heading``: the IMU's heading at ``t`` (rad, unwrapped, any fixed offset: :mod:`imu_heading`),
+        None without an IMU.  A keyframe step whose wheel turn disagrees with it by more than imu_slip_yaw
+        turns by the IMU's.  ``contact``: the bumper was pressed since the previous scan; the step's
+        motion prior is then "no motion" (bumper_hold).
+        """
         c = self.cfg
         self.stats.scans += 1
         if not self.keyframes:
-            self._add_keyframe(t, scan, odom, odom, 0.0)
+            self._add_keyframe(t, scan, odom, odom, 0.0, heading=heading)
             self._scans.append((t, 0, odom))
             return odom
         last = self.keyframes[-1]
         rel = last.odom.inverse().compose(odom)
+        imu_turn = heading - last.heading if heading is not None and last.heading is not None else None
         moved = math.hypot(rel.x, rel.y)
         due = (moved >= c.linearUpdate or abs(rel.yaw) >= c.angularUpdate
+               or (imu_turn is not None and abs(imu_turn) >= c.angularUpdate)
                or (c.temporalUpdate > 0 and t - last.t >= c.temporalUpdate))
-        predicted = self.graph.poses[-1].compose(self.bias.correct(rel))
+        wheels = step = self.bias.correct(rel)
+        pressed = contact and c.bumper_hold and moved > 0.0
+        slipped = False
+        if imu_turn is not None and c.imu_slip_yaw > 0:
+            # the gyro measures the body: a keyframe step turns by it where the wheels disagree (a collision
+            # swung the robot round, a wheel slipped); unmatched since the last keyframe or pushing against
+            # something, nothing checks the wheels, small disagreements add up, and the gyro's turn is used
+            slipped = due and abs(imu_turn - step.yaw) > c.imu_slip_yaw
+            if slipped or pressed or self._blind != (0.0, 0.0):
+                step = Pose2D(step.x, step.y, imu_turn)
+            self.stats.imu_turns += int(slipped)
+        predicted = self.graph.poses[-1].compose(step)
+        if pressed:
+            # the robot touches something and the wheels say it drove on: it most likely pushes against it,
+            # wheels slipping.  The prior stops where the map has the obstacle, or, with none mapped, stays
+            # (the matcher still finds a slide along a wall)
+            stopped = self._stop_at_obstacles(self.graph.poses[-1], predicted, count=False)
+            predicted = stopped if stopped is not predicted else self.graph.poses[-1].compose(Pose2D(0, 0, step.yaw))
         if not due:
             self._scans.append((t, len(self.keyframes) - 1, odom))
-            return predicted
+            held = predicted
+            if self._stall and not pressed:
+                # the last step slipped on the spot: so do the scans until the next keyframe
+                held = self.graph.poses[-1].compose(Pose2D(0.0, 0.0, step.yaw))
+            elif self._blind != (0.0, 0.0):
+                # unmatched since the last keyframe: hold the live pose at a mapped obstacle between keyframes too
+                held = self._stop_at_obstacles(self.graph.poses[-1], predicted, count=False)
+            if held is not predicted or step is not wheels or pressed:
+                # the live pose is not the last keyframe's plus the odometry: map->odom says so until the next
+                self._held = held.compose(odom.inverse())
+            return held
+        self._held, self._stall = None, False
         pose, blind = predicted, None
         if c.scan_matching:
             # odometry error since the last accepted match (keyframes in between were blind)
-            dist, turn = self._blind[0] + moved, self._blind[1] + abs(rel.yaw)
+            dist, turn = self._blind[0] + moved, self._blind[1] + abs(step.yaw if slipped else rel.yaw)
             sxy = c.sigma_xy_min + c.srr * dist + c.srt * turn
             if self._blind != (0.0, 0.0):
                 # nothing checked the odometry since the last match: the wheels may have turned against an
@@ -302,11 +366,27 @@ class Slam:
                 sxy += c.blind_slip * dist
             syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
             pose, ok, spread = self._track(scan, predicted, (sxy, syaw))
-            if ok and self._blind == (0.0, 0.0):
+            if pressed:
+                self.stats.bumper_holds += 1
+                self.stats.slip_held += max(0.0, moved - self.graph.poses[-1].distance(pose))
+                if not ok:
+                    self._stall, dist = True, self._blind[0]
+            elif not ok and self._stalled(scan, step):
+                # the wheels turned, the robot did not (it pushes an obstacle): what the odometry counted is not
+                # motion
+                pose, self._stall = self.graph.poses[-1].compose(Pose2D(0.0, 0.0, step.yaw)), True
+                dist = self._blind[0]
+                self.stats.stalls += 1
+                self.stats.slip_held += moved
+            elif not ok:
+                pose = self._stop_at_obstacles(self.graph.poses[-1], pose)
+            if not ok and imu_turn is not None and c.imu_slip_yaw > 0:
+                pose = Pose2D(pose.x, pose.y, self.graph.poses[-1].yaw + imu_turn)     # as above
+            if ok and self._blind == (0.0, 0.0) and not (slipped or pressed):
                 self._learn_bias(rel, self.graph.poses[-1].inverse().compose(pose), spread)
             self._blind = (0.0, 0.0) if ok else (dist, turn)
             blind = None if ok else (sxy, syaw)
-        self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind)
+        self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind, heading)
         self._scans.append((t, len(self.keyframes) - 1, odom))
         if c.loop_closure:
             # with one scan per 0.7 m an attempt every 3rd keyframe is one per ~2 m; counted by distance,
@@ -372,6 +452,55 @@ class Slam:
                                      f"{', widened' if frac > 0 else ''})")
         return res.pose, True, res.spread
 
+    def _stalled(self, scan: Scan, step: Pose2D) -> bool:
+        """The unmatched ``scan`` shows the last keyframe's scene where the robot has not moved (turned by
+        ``step``'s yaw only), clearly better than where ``step`` (the odometry's) put it: the wheels slipped on
+        the spot, e.g. pushing a table face that only a few beams see.  Needs min_match_beams hits in both."""
+        c = self.cfg
+        prev, cur = self.keyframes[-1].scan.hits, scan.hits
+        if len(prev) < c.min_match_beams or len(cur) < c.min_match_beams or math.hypot(step.x, step.y) < 1e-3:
+            return False
+        fld = LikelihoodField(prev, c.delta, c.sigma, margin=1.0)
+        still = float(fld.score_points(transform_points(Pose2D(0.0, 0.0, step.yaw), cur)).mean())
+        moved = float(fld.score_points(transform_points(step, cur)).mean())
+        return still >= STALL_FIT and still - moved >= STALL_GAIN
+
+    def _stop_at_obstacles(self, start: Pose2D, end: Pose2D, count: bool = True) -> Pose2D:
+        """``end`` (an unmatched step's odometry prediction from ``start``), stopped where the disk of
+        contact_radius round the base would move further into a mapped obstacle (occupied cells).
+
+        A robot pushing against a table face inside the depth camera's minimum range sees nothing, and its
+        wheels slip on while the odometry counts metres; the map says it cannot have gone there.  Moving
+        away from or along an obstacle it touches is allowed; the heading is the odometry's.  Returns
+        ``end`` itself when nothing stops it; ``count``: add the stop to stats (keyframe steps).
+        """
+        r, g = self.cfg.contact_radius, self.grid
+        dist = start.distance(end)
+        if r <= 0 or dist < 1e-9:
+            return end
+        h, w = g.l.shape
+        c0 = max(0, int(math.floor((min(start.x, end.x) - r - g.ox) / g.res)))
+        c1 = min(w, int(math.ceil((max(start.x, end.x) + r - g.ox) / g.res)) + 1)
+        r0 = max(0, int(math.floor((min(start.y, end.y) - r - g.oy) / g.res)))
+        r1 = min(h, int(math.ceil((max(start.y, end.y) + r - g.oy) / g.res)) + 1)
+        if c0 >= c1 or r0 >= r1:
+            return end
+        rows, cols = np.nonzero(g.l[r0:r1, c0:c1] > CONTACT_LOG_ODDS)
+        if len(rows) == 0:
+            return end
+        cells = np.column_stack((g.ox + (cols + c0 + 0.5) * g.res, g.oy + (rows + r0 + 0.5) * g.res))
+        s = np.linspace(0.0, 1.0, int(math.ceil(dist / (0.25 * g.res))) + 1)
+        path = np.column_stack((start.x + s * (end.x - start.x), start.y + s * (end.y - start.y)))
+        clear = np.hypot(path[:, None, 0] - cells[None, :, 0], path[:, None, 1] - cells[None, :, 1]).min(axis=1)
+        deeper = (clear[1:] < r) & (clear[1:] < clear[:-1] - 1e-9)
+        if not deeper.any():
+            return end
+        k = int(np.argmax(deeper))       # path[k] is the last sample before the disk moves deeper into contact
+        if count:
+            self.stats.contact_stops += 1
+            self.stats.slip_held += dist * (1.0 - s[k])
+        return Pose2D(float(path[k, 0]), float(path[k, 1]), end.yaw)
+
     def _reference(self, predicted: Pose2D) -> list[int]:
         """Keyframes of the tracking map: the last ``local_keyframes`` plus older ones within ``local_radius``."""
         c = self.cfg
@@ -384,13 +513,13 @@ class Slam:
         return sorted(idx)
 
     def _add_keyframe(self, t: float, scan: Scan, odom: Pose2D, pose: Pose2D, travel: float,
-                      odometry_sigma: tuple[float, float] | None = None) -> None:
+                      odometry_sigma: tuple[float, float] | None = None, heading: float | None = None) -> None:
         """Append a keyframe.  ``odometry_sigma`` (m, rad) set: its pose is odometry only (the match
         failed), so its edge gets that uncertainty and its scan stays out of the map (a wrong pose
         would clear free space through walls)."""
         c = self.cfg
         idx = self.graph.add_node(pose)
-        self.keyframes.append(Keyframe(t, odom, scan, travel))
+        self.keyframes.append(Keyframe(t, odom, scan, travel, heading=heading))
         if idx > 0:
             z = self.graph.poses[idx - 1].inverse().compose(pose)
             sig = (c.edge_sigma_xy, c.edge_sigma_xy, c.edge_sigma_yaw) if odometry_sigma is None else \
