@@ -15,7 +15,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
 from rosgraph_msgs.msg import Log
-from sensor_msgs.msg import LaserScan
+from sensor_msgs.msg import Imu, LaserScan
+from std_msgs.msg import Bool
 
 from chefbot_navigation.ros_io import msg_to_occupancy
 
@@ -34,7 +35,10 @@ class SlamNodeTest(unittest.TestCase):
         rospy.Subscriber("map", OccupancyGrid, lambda m: cls.maps.append(m), queue_size=2)
         cls.bad_scan = rospy.Publisher("bad/scan", LaserScan, queue_size=5)
         cls.diag: dict[str, dict] = {}      # latest status of /slam, by name: {"message": ..., key: value}
+        cls.diag_bad: dict[str, dict] = {}  # the same of /bad/slam
         rospy.Subscriber("/diagnostics", DiagnosticArray, cls._on_diag, queue_size=20)
+        cls.bad_imu = rospy.Publisher("bad/imu/data", Imu, queue_size=5)
+        cls.bad_bumper = rospy.Publisher("bad/bumper", Bool, queue_size=5)
 
     @classmethod
     def _on_log(cls, msg: Log) -> None:
@@ -45,9 +49,9 @@ class SlamNodeTest(unittest.TestCase):
     def _on_diag(cls, msg: DiagnosticArray) -> None:
         with cls.lock:
             for st in msg.status:
-                if st.hardware_id == "/slam":
-                    cls.diag[st.name] = {"message": st.message, "level": st.level,
-                                         **{kv.key: kv.value for kv in st.values}}
+                if st.hardware_id in ("/slam", "/bad/slam"):
+                    to = cls.diag if st.hardware_id == "/slam" else cls.diag_bad
+                    to[st.name] = {"message": st.message, "level": st.level, **{kv.key: kv.value for kv in st.values}}
 
     def wait(self, cond, timeout: float) -> bool:
         end = time.monotonic() + timeout
@@ -109,6 +113,20 @@ class SlamNodeTest(unittest.TestCase):
         self.assertTrue(self.wait(lambda: sent_and_logged(scan("camera_depth_frame", 0), "zero beams"), 60))
         self.assertTrue(self.wait(lambda: sent_and_logged(scan("camera_depth_frame", 10),
                                                           "no odometry tf no_such_odom -> base_footprint"), 60))
+        # the IMU and the bumper reach the node (imu/data, bumper); an IMU without a valid orientation is rejected
+        unset, level = Imu(), Imu()
+        level.orientation.w = 1.0
+
+        def imu_and_bumper_counted() -> bool:
+            for m in (unset, level):
+                m.header.stamp = rospy.Time.now()
+                self.bad_imu.publish(m)
+            self.bad_bumper.publish(Bool(True))
+            with self.lock:
+                t = self.diag_bad.get("slam: tracking", {})
+            return all(int(t.get(k, 0)) > 0 for k in ("imu_samples", "imu_samples_rejected", "bumper_samples"))
+        self.assertTrue(self.wait(imu_and_bumper_counted, 60),
+                        f"bad/slam's diagnostics do not count the IMU and bumper: {self.diag_bad}")
         names = subprocess.run(["rosnode", "list"], capture_output=True, text=True, timeout=30).stdout
         self.assertIn("/bad/slam", names)                       # still alive
 

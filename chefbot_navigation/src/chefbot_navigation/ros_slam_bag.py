@@ -1,4 +1,5 @@
-"""Offline SLAM over a rosbag (``scan`` + ``tf``/``tf_static``), as fast as the machine allows.
+"""Offline SLAM over a rosbag (``scan`` + ``tf``/``tf_static``; ``imu/data`` and ``bumper`` when recorded),
+as fast as the machine allows.
 
 Used by ``nodes/slam_offline`` and the benchmark.  All tf messages are loaded
 into one tf2 ``BufferCore`` whose cache spans the whole bag, then the scans
@@ -65,8 +66,12 @@ def progress_bar(done: int, total: int, t0: float, bag_t: float, width: int = 30
 def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", base_frame: str = "base_footprint",
             odom_frame: str = "odom", progress: Callable[[int, int, float, float], None] | None = None,
             odom_filter: Callable[[float, Pose2D], Pose2D] | None = None,
-            scan_filter: Callable[[float, Pose2D], bool] | None = None) -> OfflineResult:
+            scan_filter: Callable[[float, Pose2D], bool] | None = None, imu_topic: str = "imu/data",
+            bumper_topic: str = "bumper") -> OfflineResult:
     """Map a bag; raises :class:`BagError` for a missing/unreadable bag or one without the scan topic.
+
+    ``imu_topic`` (sensor_msgs/Imu) and ``bumper_topic`` (std_msgs/Bool) go to the front end in the
+    bag's order among the scans, as the live node gets them, when the bag has them ("": not used).
 
     Tests / benchmark only:
 
@@ -96,6 +101,12 @@ def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", bas
         if info[scan_t].msg_type != "sensor_msgs/LaserScan":
             raise BagError(f"{path}: topic '{scan_t}' is {info[scan_t].msg_type}, not sensor_msgs/LaserScan")
         total = info[scan_t].message_count
+        aux = {}
+        for name, kind in ((imu_topic, "sensor_msgs/Imu"), (bumper_topic, "std_msgs/Bool")):
+            if name and _topic(name) in info:
+                if info[_topic(name)].msg_type != kind:
+                    raise BagError(f"{path}: topic '{_topic(name)}' is {info[_topic(name)].msg_type}, not {kind}")
+                aux[_topic(name)] = kind
         start, end = bag.get_start_time(), bag.get_end_time()
         core = tf2_py.BufferCore(genpy.Duration(max(end - start, 0.0) + 60.0))
         with warnings.catch_warnings():
@@ -122,7 +133,13 @@ def run_bag(bag_path: str | Path, cfg: SlamConfig, scan_topic: str = "scan", bas
         done = skipped = decimated = 0
         first_error = ""
         first_t = last_t = None
-        for _, msg, _ in bag.read_messages(topics=[scan_t]):
+        for topic, msg, _ in bag.read_messages(topics=[scan_t, *aux]):
+            if topic != scan_t:
+                if aux[topic] == "sensor_msgs/Imu":
+                    front.add_imu(msg)
+                else:
+                    front.add_bumper(msg.data)
+                continue
             st = msg.header.stamp.to_sec()
             first_t = st if first_t is None else first_t
             last_t = st

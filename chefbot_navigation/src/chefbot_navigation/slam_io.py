@@ -1,22 +1,26 @@
-"""What the live ``slam`` node and ``slam_offline`` share: LaserScan + tf in, SLAM core out.
+"""What the live ``slam`` node and ``slam_offline`` share: LaserScan + tf (+ Imu, bumper) in, SLAM core out.
 
 Message types only, no rospy: the caller passes a tf lookup
 ``lookup(target, source, stamp) -> TransformStamped`` (tf2's BufferCore in
 the offline tool, a tf2_ros.Buffer with a timeout in the live node), so both
 feed the core exactly the same numbers and a recorded bag reproduces the
-live map.
+live map.  IMU and bumper messages may arrive on other threads than the
+scans (the live node's subscribers): they only touch state behind a small
+lock of their own.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from collections.abc import Callable
 
 import numpy as np
-from sensor_msgs.msg import LaserScan
+from sensor_msgs.msg import Imu, LaserScan
 
 from chefbot_common.geometry import Pose2D
 from chefbot_navigation.ros_io import transform_to_pose2d
+from chefbot_navigation.slam.imu_heading import HeadingTrack
 from chefbot_navigation.slam.mapper import Slam, SlamConfig
 from chefbot_navigation.slam.scan import ScanError, scan_from_ranges
 
@@ -40,6 +44,35 @@ class SlamFrontend:
         self.base_frame = base_frame
         self.odom_frame = odom_frame
         self._sensor: dict[str, Pose2D] = {}
+        self.heading = HeadingTrack()     # the IMU's heading (add_imu); none: the wheels' turns only
+        self.imu_samples = 0
+        self.bumper_samples = 0
+        self._pressed = False             # the bumper's last state
+        self._contact = False             # the bumper was pressed since the last scan
+        self._aux = threading.Lock()      # heading and bumper state (other subscriber threads)
+
+    def add_imu(self, msg: Imu) -> None:
+        """An IMU sample: its orientation's heading, or (orientation_covariance[0] == -1, REP 145: no
+        orientation) its integrated z rate.  The IMU must be mounted with z up (any heading offset)."""
+        t = msg.header.stamp.to_sec()
+        q = msg.orientation
+        with self._aux:
+            if msg.orientation_covariance[0] == -1.0:
+                used = self.heading.add_rate(t, msg.angular_velocity.z)
+            elif abs(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1.0) > 0.1:
+                self.heading.rejected += 1          # not a rotation (an all-zero quaternion: unset)
+                used = False
+            else:
+                used = self.heading.add_yaw(t, math.atan2(2.0 * (q.w * q.z + q.x * q.y),
+                                                          1.0 - 2.0 * (q.y * q.y + q.z * q.z)))
+            self.imu_samples += int(used)
+
+    def add_bumper(self, pressed: bool) -> None:
+        """The bumper's state (std_msgs/Bool data): pressed at any time between two scans counts."""
+        with self._aux:
+            self._pressed = bool(pressed)
+            self._contact = self._contact or self._pressed
+            self.bumper_samples += 1
 
     def sensor_pose(self, frame: str, stamp) -> Pose2D:
         """Pose of the scan frame in the base frame (static, cached per frame)."""
@@ -76,7 +109,11 @@ class SlamFrontend:
                                     max_range=cfg.maxRange or None)
         except ScanError as exc:
             raise SlamInputError(f"scan at t = {msg.header.stamp.to_sec():.3f} s: {exc}") from exc
-        return self.slam.add_scan(msg.header.stamp.to_sec(), scan, odom)
+        t = msg.header.stamp.to_sec()
+        with self._aux:
+            heading, contact = self.heading.at(t), self._contact or self._pressed
+            self._contact = False
+        return self.slam.add_scan(t, scan, odom, heading, contact)
 
 
 class SeqGaps:

@@ -12,7 +12,8 @@ import rosbag
 import rospy
 from geometry_msgs.msg import TransformStamped
 from hotel_bag import hotel_bag_head
-from sensor_msgs.msg import LaserScan
+from sensor_msgs.msg import Imu, LaserScan
+from std_msgs.msg import Bool
 
 from chefbot_common.map_io import load_map
 from chefbot_navigation.ros_slam_bag import BagError, run_bag
@@ -154,3 +155,58 @@ def test_seq_gaps_count_lost_scans_and_restart_on_a_seq_going_back():
     assert g.update(10) == 2 and g.update(11) == 0 and g.lost == 2
     assert g.update(0) == 0 and g.update(1) == 0              # publisher restarted / bag replayed
     assert g.update(4) == 2 and g.lost == 4
+
+
+def _imu(stamp: float, yaw: float | None = None, rate: float = 0.0) -> Imu:
+    m = Imu()
+    m.header.stamp = rospy.Time(stamp)
+    if yaw is None:
+        m.orientation_covariance[0] = -1.0                          # REP 145: no orientation
+    else:
+        m.orientation.z, m.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    m.angular_velocity.z = rate
+    return m
+
+
+def test_frontend_gives_the_core_the_imu_heading_and_the_bumper():
+    known = {("base_footprint", "laser"): _identity("base_footprint", "laser"),
+             ("odom", "base_footprint"): _identity("odom", "base_footprint")}
+    front = SlamFrontend(SlamConfig(), _lookup_factory(known))
+    seen = []
+    front.slam.add_scan = lambda t, scan, odom, heading, contact: seen.append((t, heading, contact))
+    front.add_imu(_imu(0.9, 3.1))
+    front.add_imu(_imu(1.1, -3.1))                                   # across +-pi: +0.083 rad
+    front.add_imu(Imu())                                             # all-zero quaternion: unset, not used
+    front.process(_scan(stamp=1.0))
+    front.add_bumper(True)
+    front.add_bumper(False)                                          # released before the scan: still a contact
+    front.process(_scan(stamp=1.05))
+    front.process(_scan(stamp=1.08))
+    assert [s[2] for s in seen] == [False, True, False]
+    assert seen[0][1] == pytest.approx(3.1 + (math.pi - 3.1), abs=1e-9)       # interpolated half way
+    assert front.imu_samples == 2 and front.heading.rejected == 1 and front.bumper_samples == 2
+    rate = SlamFrontend(SlamConfig(), _lookup_factory(known))
+    for k in range(11):
+        rate.add_imu(_imu(0.1 * k, None, 0.5))
+    assert rate.heading.at(1.0) - rate.heading.at(0.0) == pytest.approx(0.5, abs=1e-9)
+
+
+def test_bag_imu_and_bumper_are_used_when_recorded(tmp_path, short_bag):
+    bag = tmp_path / "imu.bag"
+    with rosbag.Bag(str(short_bag)) as src, rosbag.Bag(str(bag), "w") as dst:
+        for topic, msg, t in src.read_messages():
+            dst.write(topic, msg, t)
+        for k in range(int(20 * 50)):                                # 20 s of a still IMU at 50 Hz, bumper 20 Hz
+            t = src.get_start_time() + 0.02 * k
+            dst.write("/imu/data", _imu(t, 0.3), rospy.Time(t))
+            if k % 5 == 0:
+                dst.write("/bumper", Bool(False), rospy.Time(t))
+    res = run_bag(bag, SlamConfig())
+    assert res.front.imu_samples == 1000 and res.front.bumper_samples == 200
+    none = run_bag(bag, SlamConfig(), imu_topic="", bumper_topic="")
+    assert none.front.imu_samples == 0 and none.front.bumper_samples == 0
+    r = subprocess.run([sys.executable, str(NODE), str(bag), str(tmp_path / "m"), "--quiet"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "1000 IMU and 200 bumper messages used" in r.stdout, r.stdout + r.stderr
+    with pytest.raises(BagError, match="'/scan' is sensor_msgs/LaserScan, not std_msgs/Bool"):
+        run_bag(bag, SlamConfig(), bumper_topic="scan")
