@@ -365,6 +365,10 @@ class Slam:
                 # obstacle (a camera inside its 0.45 m minimum range sees nothing), the robot not moving
                 sxy += c.blind_slip * dist
             syaw = c.sigma_yaw_min + c.str * dist + c.stt * turn
+            if pressed:
+                # the robot went somewhere between "not at all" and where the wheels say (a slide along
+                # what it pushes): a prior as sure as the odometry's would pull the match to "not at all"
+                sxy = max(sxy, moved)
             pose, ok, spread = self._track(scan, predicted, (sxy, syaw))
             if pressed:
                 self.stats.bumper_holds += 1
