@@ -137,7 +137,8 @@ def wander(seed: int = 0, duration: float = 300.0, imu: bool = True, bumper: boo
                 "est_y": (min(est_y), max(est_y)), "bumper_s": pressed_s,
                 "dead_reckoning_xy": math.hypot(dead.x - gt.x, dead.y - gt.y),
                 "keyframes": st.keyframes, "matched": st.matched, "recoveries": st.recoveries,
-                "loop_closures": st.loop_closures, "imu_turns": st.imu_turns, "contact_stops": st.contact_stops,
+                "loop_closures": st.loop_closures, "imu": st.imu, "imu_turns": st.imu_turns,
+                "contact_stops": st.contact_stops,
                 "stalls": st.stalls, "bumper_holds": st.bumper_holds, "slip_held_m": st.slip_held,
                 "scan_ms_median": 1e3 * float(np.median(costs)),
                 "sim_s": sim.time}

@@ -73,21 +73,28 @@ def test_heading_track_keeps_only_recent_history():
 
 
 # ---------------------------------------------------------------- whole SLAM
-def _swing(cfg: SlamConfig, imu: bool):
-    """Drive 1 m along x seeing the room, then a collision swings the body +0.5 rad while the wheels
-    report 0.1 m straight on and the camera (pressed against the obstacle) sees nothing.  The IMU's
-    heading has an arbitrary offset.  Returns the SLAM, the last odometry pose and the true yaw."""
+def _swing(cfg: SlamConfig, imu: bool, imu_sign: float = 1.0):
+    """Spin 2 turns on the spot and drive 1 m along x seeing the room, then a collision swings the body
+    +0.5 rad while the wheels report 0.1 m straight on and the camera (pressed against the obstacle) sees
+    nothing.  The IMU's heading has an arbitrary offset and turns ``imu_sign`` times the body.  Returns the
+    SLAM, the last odometry pose and the true yaw."""
     slam, t = Slam(cfg), 0.0
+
+    def add(true: Pose2D, odom: Pose2D, turned: float, blind: bool = False) -> None:
+        nonlocal t              # turned: the body's unwrapped heading (rad)
+        slam.add_scan(t, _scan(true, blind), odom, 0.7 + imu_sign * turned if imu else None)
+        t += 0.1
+    for k in range(145):                  # 5 deg per scan: two turns
+        p = Pose2D(-1.0, -0.5, wrap_angle(math.radians(5 * k)))
+        add(p, p, math.radians(5 * k))
     for k in range(21):
         p = Pose2D(-1.0 + 0.05 * k, -0.5, 0.0)
-        slam.add_scan(t, _scan(p), p, 0.7 if imu else None)
-        t += 0.1
+        add(p, p, 4 * math.pi)
     yaw = 0.0
     for k in range(1, 6):
         yaw = 0.1 * k
         odom = Pose2D(0.02 * k, -0.5, 0.0)
-        slam.add_scan(t, _scan(odom, blind=True), odom, 0.7 + yaw if imu else None)
-        t += 0.1
+        add(Pose2D(odom.x, odom.y, yaw), odom, 4 * math.pi + yaw, blind=True)
     return slam, odom, yaw
 
 
@@ -99,6 +106,17 @@ def test_the_imu_turns_the_pose_when_the_wheels_miss_a_swing():
     assert abs(wrap_angle(_live(off, odom).yaw - yaw)) > 0.4
     none, odom, yaw = _swing(SlamConfig(), imu=False)
     assert abs(wrap_angle(_live(none, odom).yaw - yaw)) > 0.4 and none.stats.imu_turns == 0
+    assert slam.stats.imu == "in use" and slam.stats.imu_ratio == pytest.approx(1.0, abs=0.05)
+    assert none.stats.imu == "none"
+
+
+@pytest.mark.parametrize("sign", [-1.0, 0.0])
+def test_an_imu_upside_down_or_frozen_is_not_used(sign):
+    slam, odom, yaw = _swing(SlamConfig(), imu=True, imu_sign=sign)
+    assert slam.stats.imu == "rejected" and slam.stats.imu_ratio == pytest.approx(sign, abs=0.1)
+    assert any(e.startswith("imu rejected") and "upside down" in e for e in slam.stats.events), slam.stats.events
+    assert slam.stats.imu_turns == 0
+    assert abs(wrap_angle(_live(slam, odom).yaw)) < 0.02       # the wheels' heading: it missed the swing
 
 
 def _push(cfg: SlamConfig, bumper: bool):

@@ -65,8 +65,19 @@ CONTACT_LOG_ODDS = 1.5
 # scores ~0.36 at sigma 0.07, a wall along the motion fits both and holds nothing
 STALL_FIT = 0.6
 STALL_GAIN = 0.2
+# the IMU's turns are used only while they agree with the matched turns: their ratio (least squares over the
+# matched keyframe steps turning over IMU_MIN_STEP, each weighing IMU_DECAY less per newer one) within IMU_RATIO,
+# judged once the weighed sum of squared matched turns reaches IMU_CHECK (rad^2; ~3 rad of turning on the spot).
+# An IMU mounted upside down turns -1x, one in a wrong frame or frozen ~0x: the wheels alone are better
+IMU_RATIO = (0.8, 1.25)
+IMU_CHECK = 1.0
+IMU_MIN_STEP = 0.02
+IMU_DECAY = 0.98
+# Slam.stats.imu
+IMU_NONE, IMU_CHECKING, IMU_IN_USE, IMU_REJECTED = "none", "checking", "in use", "rejected"
 # how Slam.stats.events lines begin (tools/slam_workflow.py counts them by these)
 EVENT_CLOSURE = "loop closure keyframe"
+EVENT_IMU = "imu"
 EVENT_DROPPED = "loop match keyframe"
 EVENT_CORRECTION = "large correction at scan"
 EVENT_OUTLIER = "loop edge down-weighted:"
@@ -241,6 +252,8 @@ class SlamStats:
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
     distance_scale: float = 1.0          # learned odometry distance scale in use (1: none yet)
     drift_per_m: float = 0.0             # rad/m learned heading drift in use (0: none yet)
+    imu: str = IMU_NONE                  # the IMU heading: none seen, checking, in use, rejected (IMU_RATIO)
+    imu_ratio: float = math.nan          # its turns / the matched turns (nan: not judged yet)
     imu_turns: int = 0                   # steps whose turn came from the IMU, not the wheels (imu_slip_yaw)
     contact_stops: int = 0               # unmatched steps stopped at a mapped obstacle (_stop_at_obstacles)
     stalls: int = 0                      # unmatched steps whose scan showed no motion at all (_stalled)
@@ -271,6 +284,7 @@ class Slam:
         self._blind = (0.0, 0.0)      # (m, rad) driven / turned since the last accepted match
         self._held: Pose2D | None = None   # map->odom holding the live pose at an obstacle between keyframes
         self._stall = False           # the last keyframe step slipped on the spot (_stalled)
+        self._imu_fit = (0.0, 0.0)    # weighed sums of imu turn * matched turn, matched turn^2 (_check_imu)
         self.bias = OdometryBias(BiasLimits(**{f.name: getattr(c, f.name) for f in fields(BiasLimits)}))
 
     # -- queries ------------------------------------------------------------------------------
@@ -306,9 +320,10 @@ class Slam:
         """Process one scan (base frame) taken at ``t`` s with the base at ``odom``; returns the map pose.
 
         ``heading``: the IMU's heading at ``t`` (rad, unwrapped, any fixed offset: :mod:`imu_heading`),
-        None without an IMU.  A keyframe step whose wheel turn disagrees with it by more than imu_slip_yaw
-        turns by the IMU's.  ``contact``: the bumper was pressed since the previous scan; the step's
-        motion prior is then "no motion" (bumper_hold).
+        None without an IMU.  Once its turns have agreed with the matched ones (stats.imu "in use"), a
+        keyframe step whose wheel turn disagrees with it by more than imu_slip_yaw turns by the IMU's.
+        ``contact``: the bumper was pressed since the previous scan; the step's motion prior is then
+        "no motion" (bumper_hold).
         """
         c = self.cfg
         self.stats.scans += 1
@@ -319,14 +334,17 @@ class Slam:
         last = self.keyframes[-1]
         rel = last.odom.inverse().compose(odom)
         imu_turn = heading - last.heading if heading is not None and last.heading is not None else None
+        if imu_turn is not None and self.stats.imu == IMU_NONE:
+            self.stats.imu = IMU_CHECKING
+        use_imu = imu_turn is not None and c.imu_slip_yaw > 0 and self.stats.imu == IMU_IN_USE
         moved = math.hypot(rel.x, rel.y)
         due = (moved >= c.linearUpdate or abs(rel.yaw) >= c.angularUpdate
-               or (imu_turn is not None and abs(imu_turn) >= c.angularUpdate)
+               or (use_imu and abs(imu_turn) >= c.angularUpdate)
                or (c.temporalUpdate > 0 and t - last.t >= c.temporalUpdate))
         wheels = step = self.bias.correct(rel)
         pressed = contact and c.bumper_hold and moved > 0.0
         slipped = False
-        if imu_turn is not None and c.imu_slip_yaw > 0:
+        if use_imu:
             # the gyro measures the body: a keyframe step turns by it where the wheels disagree (a collision
             # swung the robot round, a wheel slipped); unmatched since the last keyframe or pushing against
             # something, nothing checks the wheels, small disagreements add up, and the gyro's turn is used
@@ -384,8 +402,10 @@ class Slam:
                 self.stats.slip_held += moved
             elif not ok:
                 pose = self._stop_at_obstacles(self.graph.poses[-1], pose)
-            if not ok and imu_turn is not None and c.imu_slip_yaw > 0:
+            if not ok and use_imu:
                 pose = Pose2D(pose.x, pose.y, self.graph.poses[-1].yaw + imu_turn)     # as above
+            if ok and self._blind == (0.0, 0.0) and imu_turn is not None:
+                self._check_imu(imu_turn, wrap_angle(pose.yaw - self.graph.poses[-1].yaw))
             if ok and self._blind == (0.0, 0.0) and not (slipped or pressed):
                 self._learn_bias(rel, self.graph.poses[-1].inverse().compose(pose), spread)
             self._blind = (0.0, 0.0) if ok else (dist, turn)
@@ -455,6 +475,23 @@ class Slam:
                                      f"window {wxy:.2f} m / {math.degrees(wyaw):.0f} deg"
                                      f"{', widened' if frac > 0 else ''})")
         return res.pose, True, res.spread
+
+    def _check_imu(self, imu_turn: float, matched: float) -> None:
+        """Compare the IMU's turn over a matched keyframe step with the matched turn; the IMU is used while
+        their ratio stays within IMU_RATIO (an IMU upside down, in a wrong frame or frozen is not)."""
+        if abs(matched) < IMU_MIN_STEP:
+            return
+        a, b = self._imu_fit
+        a, b = IMU_DECAY * a + imu_turn * matched, IMU_DECAY * b + matched * matched
+        self._imu_fit = (a, b)
+        if b < IMU_CHECK:
+            return
+        ratio = a / b
+        state = IMU_IN_USE if IMU_RATIO[0] <= ratio <= IMU_RATIO[1] else IMU_REJECTED
+        if state != self.stats.imu:
+            why = "" if state == IMU_IN_USE else " (mounted upside down, in another frame, or not turning?)"
+            self.stats.events.append(f"{EVENT_IMU} {state}: its turns are {ratio:+.2f}x the matched turns{why}")
+        self.stats.imu, self.stats.imu_ratio = state, ratio
 
     def _stalled(self, scan: Scan, step: Pose2D) -> bool:
         """The unmatched ``scan`` shows the last keyframe's scene where the robot has not moved (turned by
