@@ -46,6 +46,7 @@ class SlamFrontend:
         self._sensor: dict[str, Pose2D] = {}
         self.heading = HeadingTrack()     # the IMU's heading (add_imu); none: the wheels' turns only
         self.imu_samples = 0
+        self.scans_without_imu = 0        # scans with no IMU sample within max_gap, once the IMU had sent some
         self.bumper_samples = 0
         self._pressed = False             # the bumper's last state
         self._contact = False             # the bumper was pressed since the last scan
@@ -113,6 +114,8 @@ class SlamFrontend:
         with self._aux:
             heading, contact = self.heading.at(t), self._contact or self._pressed
             self._contact = False
+            if heading is None and self.imu_samples:
+                self.scans_without_imu += 1
         return self.slam.add_scan(t, scan, odom, heading, contact)
 
 

@@ -182,7 +182,10 @@ def test_frontend_gives_the_core_the_imu_heading_and_the_bumper():
     front.add_bumper(False)                                          # released before the scan: still a contact
     front.process(_scan(stamp=1.05))
     front.process(_scan(stamp=1.08))
-    assert [s[2] for s in seen] == [False, True, False]
+    assert front.scans_without_imu == 0
+    front.process(_scan(stamp=3.0))                                  # the IMU stopped (or another clock)
+    assert seen[-1][1] is None and front.scans_without_imu == 1
+    assert [s[2] for s in seen] == [False, True, False, False]
     assert seen[0][1] == pytest.approx(3.1 + (math.pi - 3.1), abs=1e-9)       # interpolated half way
     assert front.imu_samples == 2 and front.heading.rejected == 1 and front.bumper_samples == 2
     rate = SlamFrontend(SlamConfig(), _lookup_factory(known))
