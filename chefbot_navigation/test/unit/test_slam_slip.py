@@ -131,9 +131,22 @@ def _push(cfg: SlamConfig, bumper: bool):
 
 
 def test_pushing_a_wall_with_the_bumper_pressed_holds_the_pose():
-    x, slam = _push(SlamConfig(contact_radius=0.0), bumper=True)
+    x, slam = _push(SlamConfig(contact_radius=0.0, bumper_hold_after=0.0), bumper=True)
     assert x == pytest.approx(3.8, abs=0.05) and slam.stats.bumper_holds > 0
     assert slam.stats.slip_held > 0.9                # of the 1.2 m the wheels counted against the wall
+    # the first bumper_hold_after (0.3 s) of a contact is believed: here 0.15 m of odometry
+    x, slam = _push(SlamConfig(contact_radius=0.0), bumper=True)
+    assert x == pytest.approx(3.8 + 0.15, abs=0.05) and slam.stats.bumper_holds > 0
+
+
+def test_a_graze_while_driving_along_a_corridor_holds_nothing():
+    corridor = np.array([[-5.0, -1.2, 9.0, -1.2], [-5.0, 0.2, 9.0, 0.2], [8.0, -1.2, 8.0, 0.2]])
+    slam, t = Slam(SlamConfig()), 0.0
+    for k in range(60):                             # 3 m at 0.05 m per scan, touching something for 0.25 s
+        p = Pose2D(0.05 * k, -0.5, 0.0)
+        slam.add_scan(t, _scan(p, segs=corridor), p, None, 20 <= k < 23)
+        t += 0.1
+    assert _live(slam, p).x == pytest.approx(p.x, abs=0.05) and slam.stats.bumper_holds == 0
 
 
 def test_pushing_a_mapped_wall_stops_at_it_without_a_bumper():
@@ -172,6 +185,6 @@ def test_stalled_sees_an_unchanged_scan_only():
 
 
 def test_config_rejects_negative_slip_settings():
-    for name in ("imu_slip_yaw", "contact_radius"):
+    for name in ("imu_slip_yaw", "contact_radius", "bumper_hold_after"):
         with pytest.raises(ValueError, match=name):
             Slam(SlamConfig(**{name: -0.1}))

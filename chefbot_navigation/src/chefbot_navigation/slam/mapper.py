@@ -172,6 +172,7 @@ class SlamConfig:
     bumper_hold: bool = True             # a step taken with the bumper pressed starts its match from "no motion"
     #                                      and keeps its position if unmatched (the wheels push an obstacle the
     #                                      scan may not see; the heading still turns)
+    bumper_hold_after: float = 0.3       # s of contact before bumper_hold applies (a push lasts, a graze does not)
     l_occ: float = 0.9                   # log-odds added per hit
     l_free: float = -0.7                 # log-odds added per pass
     l_clamp: float = 4.0                 # |log-odds| read out at most (clamp at read time)
@@ -195,7 +196,7 @@ class SlamConfig:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
                      "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip",
-                     "contact_radius", "imu_slip_yaw"):
+                     "contact_radius", "imu_slip_yaw", "bumper_hold_after"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -285,6 +286,7 @@ class Slam:
         self._held: Pose2D | None = None   # map->odom holding the live pose at an obstacle between keyframes
         self._stall = False           # the last keyframe step slipped on the spot (_stalled)
         self._imu_fit = (0.0, 0.0)    # weighed sums of imu turn * matched turn, matched turn^2 (_check_imu)
+        self._contact_since: float | None = None    # stamp of the first scan of the current bumper contact
         self.bias = OdometryBias(BiasLimits(**{f.name: getattr(c, f.name) for f in fields(BiasLimits)}))
 
     # -- queries ------------------------------------------------------------------------------
@@ -342,7 +344,10 @@ class Slam:
                or (use_imu and abs(imu_turn) >= c.angularUpdate)
                or (c.temporalUpdate > 0 and t - last.t >= c.temporalUpdate))
         wheels = step = self.bias.correct(rel)
-        pressed = contact and c.bumper_hold and moved > 0.0
+        self._contact_since = (self._contact_since if self._contact_since is not None else t) if contact else None
+        # pushing lasts; a graze while driving past something does not (and holding it would cost the distance)
+        pressed = (contact and c.bumper_hold and moved > 0.0 and self._contact_since is not None
+                   and t - self._contact_since >= c.bumper_hold_after)
         slipped = False
         if use_imu:
             # the gyro measures the body: a keyframe step turns by it where the wheels disagree (a collision
