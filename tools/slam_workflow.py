@@ -44,7 +44,14 @@ from std_msgs.msg import Bool
 from chefbot_common.geometry import Pose2D, yaw_from_quaternion
 from chefbot_common.grid import OccupancyMap
 from chefbot_common.map_io import load_map
-from chefbot_navigation.slam.mapper import EVENT_CLOSURE, EVENT_CORRECTION, EVENT_DROPPED, EVENT_OUTLIER
+from chefbot_navigation.slam.mapper import (
+    EVENT_CLOSURE,
+    EVENT_CORRECTION,
+    EVENT_DROPPED,
+    EVENT_IMU,
+    EVENT_OUTLIER,
+    IMU_REJECTED,
+)
 from chefbot_navigation.slam.metrics import ate_rms
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -197,8 +204,9 @@ _CLOSURE = re.compile(rf"{EVENT_CLOSURE} \d+ -> \d+: corrected ([\d.]+) m, ([\d.
 
 def slam_events_summary(lines: list[str]) -> str:
     """One line on the slam node's events (its ``slam: ...`` log lines): how many loop closures and the
-    largest, dropped loop matches, large scan-matcher corrections and scan-loss warnings.  Lines are
-    counted by the mapper's own event prefixes; a closure whose figures do not parse is still counted."""
+    largest, dropped loop matches, large scan-matcher corrections, IMU rejections and scan-loss warnings.
+    Lines are counted by the mapper's own event prefixes; a closure whose figures do not parse is still
+    counted."""
     found = [ln for ln in lines if EVENT_CLOSURE in ln]
     closures = [(float(m[1]), float(m[2]), m[3]) for m in map(_CLOSURE.search, found) if m]
     parts = [f"{len(found)} loop closure{'s' * (len(found) != 1)}"]
@@ -209,6 +217,7 @@ def slam_events_summary(lines: list[str]) -> str:
         parts.append(f"{len(found) - len(closures)} closure line(s) not understood: {found[0][:160]}")
     for what, key in (("loop match(es) dropped", EVENT_DROPPED), ("large correction(s)", EVENT_CORRECTION),
                       ("loop edge(s) down-weighted", EVENT_OUTLIER),
+                      ("IMU rejection(s)", f"{EVENT_IMU} {IMU_REJECTED}"),
                       ("scan-loss warning(s)", "falling behind")):
         n = sum(key in ln for ln in lines)
         if n:

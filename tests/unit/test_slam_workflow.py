@@ -100,10 +100,12 @@ def test_slam_events_summary_names_the_largest_closure_and_counts_the_rest() -> 
              "slam: loop match keyframe 31 dropped: still on the search window's edge after 2 searches around it, "
              "0.612 m off (score 0.70)",
              "slam: large correction at scan 400: 0.120 m, 2.0 deg off the odometry (score 0.90)",
-             "slam: large correction at scan 410: 0.110 m, 1.0 deg off the odometry (score 0.90)"]
+             "slam: large correction at scan 410: 0.110 m, 1.0 deg off the odometry (score 0.90)",
+             "slam: imu/data in use: its turns are +1.00x the matched turns",
+             "slam: imu/data rejected: its turns are -0.98x the matched turns (mounted upside down, ...)"]
     assert wf.slam_events_summary(lines) == (
         "slam: 2 loop closures (largest 0.425 m / 9.4 deg: score 0.78, fit before 0.37, recentred 1x), "
-        "1 loop match(es) dropped, 2 large correction(s)")
+        "1 loop match(es) dropped, 2 large correction(s), 1 IMU rejection(s)")
     assert wf.slam_events_summary([]) == "slam: 0 loop closures"
     # a closure line in another wording is still counted, and says so
     assert wf.slam_events_summary(["slam: loop closure keyframe 9 -> 2: moved by 0.1 m"]) == (

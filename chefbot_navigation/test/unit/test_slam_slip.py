@@ -114,7 +114,7 @@ def test_the_imu_turns_the_pose_when_the_wheels_miss_a_swing():
 def test_an_imu_upside_down_or_frozen_is_not_used(sign):
     slam, odom, yaw = _swing(SlamConfig(), imu=True, imu_sign=sign)
     assert slam.stats.imu == "rejected" and slam.stats.imu_ratio == pytest.approx(sign, abs=0.1)
-    assert any(e.startswith("imu rejected") and "upside down" in e for e in slam.stats.events), slam.stats.events
+    assert any(e.startswith("imu/data rejected") and "upside down" in e for e in slam.stats.events), slam.stats.events
     assert slam.stats.imu_turns == 0
     assert abs(wrap_angle(_live(slam, odom).yaw)) < 0.02       # the wheels' heading: it missed the swing
 

@@ -77,7 +77,7 @@ IMU_DECAY = 0.98
 IMU_NONE, IMU_CHECKING, IMU_IN_USE, IMU_REJECTED = "none", "checking", "in use", "rejected"
 # how Slam.stats.events lines begin (tools/slam_workflow.py counts them by these)
 EVENT_CLOSURE = "loop closure keyframe"
-EVENT_IMU = "imu"
+EVENT_IMU = "imu/data"
 EVENT_DROPPED = "loop match keyframe"
 EVENT_CORRECTION = "large correction at scan"
 EVENT_OUTLIER = "loop edge down-weighted:"
@@ -163,7 +163,7 @@ class SlamConfig:
     refine_max_spread: float = 0.05      # m, an ambiguous refinement match is not used (as loop_max_spread)
     footprint_radius: float = 0.2        # m, the robot's own disk is free space (a depth camera's range_min
     #                                      hides it; 0: off)
-    imu_slip_yaw: float = 0.05           # [rad] a step whose wheel turn differs from the IMU's by more than this takes
+    imu_slip_yaw: float = 0.05           # rad, a step whose wheel turn differs from the IMU's by more than this takes
     #                                      the IMU's (the body swung round by a collision, a wheel slipping; 0: the
     #                                      IMU is not used)
     contact_radius: float = 0.12         # m; an unmatched step's odometry is stopped where a disk of this radius
