@@ -26,6 +26,8 @@ from chefbot_navigation.slam.scan import ScanError, scan_from_ranges
 
 Lookup = Callable[[str, str, object], object]
 
+# s: a pressed bumper whose messages stopped this long ago no longer counts (its driver died while pressed)
+BUMPER_STALE = 0.5
 # parameter name (gmapping's where one exists) -> SlamConfig field; all private (~)
 PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(SlamConfig))
 
@@ -50,6 +52,8 @@ class SlamFrontend:
         self.bumper_samples = 0
         self._pressed = False             # the bumper's last state
         self._contact = False             # the bumper was pressed since the last scan
+        self._bumper_new = False          # a bumper message came since the last scan
+        self._bumper_t = -math.inf        # stamp of the last scan after which a bumper message came
         self._aux = threading.Lock()      # heading and bumper state (other subscriber threads)
 
     def add_imu(self, msg: Imu) -> None:
@@ -73,6 +77,7 @@ class SlamFrontend:
         with self._aux:
             self._pressed = bool(pressed)
             self._contact = self._contact or self._pressed
+            self._bumper_new = True
             self.bumper_samples += 1
 
     def sensor_pose(self, frame: str, stamp) -> Pose2D:
@@ -112,7 +117,11 @@ class SlamFrontend:
             raise SlamInputError(f"scan at t = {msg.header.stamp.to_sec():.3f} s: {exc}") from exc
         t = msg.header.stamp.to_sec()
         with self._aux:
-            heading, contact = self.heading.at(t), self._contact or self._pressed
+            if self._bumper_new:
+                self._bumper_t, self._bumper_new = t, False
+            # the last state holds between messages (scans faster than the bumper), not once they stop
+            held = self._pressed and t - self._bumper_t <= BUMPER_STALE
+            heading, contact = self.heading.at(t), self._contact or held
             self._contact = False
             if heading is None and self.imu_samples:
                 self.scans_without_imu += 1

@@ -188,6 +188,10 @@ def test_frontend_gives_the_core_the_imu_heading_and_the_bumper():
     assert [s[2] for s in seen] == [False, True, False, False]
     assert seen[0][1] == pytest.approx(3.1 + (math.pi - 3.1), abs=1e-9)       # interpolated half way
     assert front.imu_samples == 2 and front.heading.rejected == 1 and front.bumper_samples == 2
+    front.add_bumper(True)                                           # pressed, then its messages stop
+    for t in (3.1, 3.2, 3.5, 3.7):
+        front.process(_scan(stamp=t))
+    assert [s[2] for s in seen[-4:]] == [True, True, True, False]   # held up to 0.5 s after the last message
     rate = SlamFrontend(SlamConfig(), _lookup_factory(known))
     for k in range(11):
         rate.add_imu(_imu(0.1 * k, None, 0.5))
