@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """rostest node for amcl_sim.test: our amcl in the pybullet hotel with noisy wheel odometry, judged by
-ground truth (tests only): tracking on a multi-table route, initialpose, global_localization, kidnap.
+ground truth (tests only): tracking on a multi-table route (``~route``, table names), initialpose,
+global_localization, kidnap.
 
 Durations are sim time; wall-clock bounds are generous timeouts for a loaded machine.
 """
@@ -23,6 +24,7 @@ from geometry_msgs.msg import Pose2D as Pose2DMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, Vector3
 from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty
 
 from chefbot_common.geometry import Pose2D, wrap_angle, yaw_from_quaternion
@@ -102,6 +104,13 @@ class AmclSimTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
         cls.tables = load_tables(rospy.get_param("~tables"))
+        cls.route = list(rospy.get_param("~route", ["table_4", "table_1", "table_8", "home"]))
+        fov = rospy.get_param("~scan_fov_deg", None)
+        if fov is not None:       # a lidar run: the scan amcl reads is the lidar's (~scan_frame, that wide)
+            scan = rospy.wait_for_message("scan", LaserScan, timeout=60.0)
+            width = math.degrees(scan.angle_max - scan.angle_min + scan.angle_increment)
+            assert abs(width - fov) <= 2.0, f"scan covers {width:.1f} deg, not the lidar's {fov}"
+            assert scan.header.frame_id == rospy.get_param("~scan_frame", "laser"), scan.header.frame_id
         cls.track = Tracker()
         cls.client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
         assert cls.client.wait_for_server(rospy.Duration(120.0)), "no move_base"
@@ -141,7 +150,7 @@ class AmclSimTest(unittest.TestCase):
 
     def test_a_tracking_on_a_route(self) -> None:
         self.track.recording = True
-        delivery = [self.deliver(n) for n in ("table_4", "table_1", "table_8", "home")]
+        delivery = [self.deliver(n) for n in self.route]
         self.track.recording = False
         e = np.array([(m, r) for _, m, r in self.track.errors])
         self.assertGreater(len(e), 50, "too few tracking samples")
