@@ -192,6 +192,90 @@ def test_loop_closure_on_square_corridor():
     assert _double_walls(open_loop, segs) > 0.3
 
 
+def test_the_loop_window_grows_with_the_drift_since_the_candidate_was_mapped():
+    c = SlamConfig(scan_matching=False, loop_closure=False)
+    slam, _, _, _ = _run_corridor(c)
+    drift = np.array([k.drift for k in slam.keyframes])
+    assert (np.diff(drift, axis=0) >= 0).all() and drift[-1, 0] > 1.0           # odometry only: it only grows
+    last = len(slam.keyframes) - 1
+    near, far = slam._loop_window(last - 5, last), slam._loop_window(0, last)
+    assert near[0] == c.loop_xy                                 # a few steps (a corner turn: a wider yaw window)
+    assert far == (c.loop_max_xy, c.loop_max_yaw)                              # a long chain: the widest
+    mid = next(i for i in range(last, -1, -1) if slam._loop_window(i, last)[0] > 1.5 * c.loop_xy)
+    wxy, _ = slam._loop_window(mid, last)
+    assert wxy == pytest.approx(3.0 * (drift[last, 0] - drift[mid, 0]), rel=1e-9)
+    # a matched step drifts far less than an unmatched one of the same length
+    assert slam._drift((0.0, 0.0), 1.0, 0.0, True, False) < slam._drift((0.0, 0.0), 1.0, 0.0, False, False)
+    assert slam._drift((0.0, 0.0), 1.0, 0.0, False, True)[0] > slam._drift((0.0, 0.0), 1.0, 0.0, False, False)[0]
+
+
+def test_a_long_drift_is_closed_by_a_search_as_wide_as_its_uncertainty():
+    # odometry only (nothing tracks the drift): 1.5-3 m and ~20 deg off when the second lap begins
+    cfg = dict(scan_matching=False, loop_min_travel=8.0)
+    slam, segs, err, odo_err = _run_corridor(SlamConfig(**cfg), yaw_bias=0.012)
+    assert odo_err.max() > 2.0
+    wide = [e for e in slam.stats.events if e.startswith("loop closure") and "window" in e]
+    assert wide and float(wide[0].split("corrected ")[1].split(" m")[0]) > 1.0, slam.stats.events[:5]
+    assert err.max() < 0.25 and err[-1] < 0.1, (err.max(), err[-1], slam.stats)
+    assert _double_walls(slam, segs) < 0.05
+    # the same run with the window fixed at loop_xy / loop_yaw: no closure reaches that far
+    fixed, segs, err_fixed, _ = _run_corridor(SlamConfig(loop_max_xy=0.3, loop_max_yaw=0.35, **cfg), yaw_bias=0.012)
+    assert fixed.stats.loop_window == 0.0 and err_fixed[-1] > 1.0, (err_fixed[-1], fixed.stats)
+    assert _double_walls(fixed, segs) > 0.3
+
+
+def test_a_single_look_alike_in_a_widened_loop_search_is_not_used():
+    # tracking keeps the drift small, but loop_drift_xy says it may be large: the searches are widened, and the
+    # first good one answers 1 m off (a look-alike far away) with a perfect score: it waits for a second match,
+    # which finds the truth
+    import chefbot_navigation.slam.mapper as mapper
+    cfg = SlamConfig(loop_drift_xy=0.05)
+    real, calls = mapper.match, []
+
+    def look_alike(fld, pts, prior, window, *a, **k):
+        res = real(fld, pts, prior, window, *a, **k)
+        if window.xy > cfg.loop_xy and not calls and res.score >= cfg.loop_sure_score:
+            calls.append(window.xy)
+            res.pose, res.score, res.spread = Pose2D(res.pose.x + 1.0, res.pose.y, res.pose.yaw), 1.0, 0.0
+        return res
+
+    mapper.match = look_alike
+    try:
+        slam, segs, err, _ = _run_corridor(cfg)
+    finally:
+        mapper.match = real
+    assert len(calls) == 1 and calls[0] > 1.0 and slam.stats.loop_unconfirmed >= 1, (calls, slam.stats)
+    assert slam.stats.loop_closures >= 1, slam.stats
+    assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
+    assert _double_walls(slam, segs) < 0.01
+
+
+def test_a_widened_loop_match_inside_the_fixed_window_is_not_used():
+    # the fixed window finds nothing good; the widened one (grown by loop_drift_xy) answers 0.15 m off, inside
+    # the fixed window, with a perfect score every time: such a match fits only thanks to the far keyframes it
+    # added (mapped at drifted poses), so nothing is closed
+    import chefbot_navigation.slam.mapper as mapper
+    cfg = SlamConfig(loop_drift_xy=0.05)
+    real, widened = mapper.match, []
+
+    def fixed_blind(fld, pts, prior, window, *a, **k):
+        res = real(fld, pts, prior, window, *a, **k)
+        if window.xy == cfg.loop_xy:
+            res.score = 0.0
+        elif window.xy > cfg.loop_xy:
+            widened.append(window.xy)
+            res.pose, res.score, res.spread, res.on_border = Pose2D(prior.x + 0.15, prior.y, prior.yaw), 1.0, 0.0, False
+        return res
+
+    mapper.match = fixed_blind
+    try:
+        slam, segs, err, _ = _run_corridor(cfg)
+    finally:
+        mapper.match = real
+    assert widened and slam.stats.loop_closures == 0, (widened, slam.stats)
+    assert err.max() < 0.1, (err.max(), slam.stats)
+
+
 def _corridor_with_a_look_alike(cfg: SlamConfig, every: bool = False, border: bool = False,
                                 score: float | None = None):
     """The corridor run, with the loop matcher answering 0.3 m off the truth at its first good match
@@ -235,9 +319,10 @@ def test_a_single_look_alike_loop_match_is_not_used():
 
 def test_a_loop_match_still_on_the_window_edge_after_searching_around_it_is_dropped():
     # the fit test off (> 1): a best pose on the window's edge is searched for again around itself;
-    # one that slides on at every search has no maximum and closes nothing
+    # one that slides on at every search has no maximum and closes nothing (the loop window fixed: no
+    # widened search follows to look beyond the edge)
     import chefbot_navigation.slam.mapper as mapper
-    cfg = SlamConfig(loop_confirm_fit=1.5)
+    cfg = SlamConfig(loop_confirm_fit=1.5, loop_max_xy=0.3, loop_max_yaw=0.35)
     slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, border=True)
     assert len(calls) == 1 + mapper.LOOP_RECENTRES and slam.stats.loop_no_maximum == 1, slam.stats
     assert any("dropped: still on the search window's edge" in e for e in slam.stats.events), slam.stats.events

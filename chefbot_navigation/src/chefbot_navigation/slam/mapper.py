@@ -15,7 +15,16 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
    keyframe (their matched relative pose), integrated into the log-odds grid.
 4. Loop closure: keyframes driven past more than ``loop_min_travel`` m ago
    and lying within ``loop_search_radius`` m are the candidates; the scan is
-   matched in a wide window against their obstacle points (a best pose on the
+   matched in a +-``loop_xy`` / ``loop_yaw`` window against their obstacle
+   points.  When that finds no good fit (or only one on its edge) and the drift
+   accumulated along the chain since some old keyframe was mapped
+   (``Keyframe.drift``: ``loop_drift_*`` per metre matched, the odometry's
+   error for unmatched steps) makes 3 std-devs wider, a widened search follows,
+   its window and the candidates' radius grown by it up to ``loop_max_xy`` /
+   ``loop_max_yaw``: it ranks its candidates with the drift as the prior, needs
+   ``loop_sure_score``, a best pose beyond the fixed window and a second
+   agreeing match (below) - a robot back after a long drift is found metres
+   off, a look-alike far away has to fit clearly better (a best pose on the
    window's edge is searched for again around itself, ``LOOP_RECENTRES`` times;
    one still on the edge has no maximum and is dropped); a good match
    (``loop_min_score``) adds a loop edge - if the pose before it already fitted
@@ -49,7 +58,7 @@ from chefbot_navigation.slam.occupancy import LogOddsGrid, LogOddsParams
 from chefbot_navigation.slam.odometry_bias import BiasLimits, OdometryBias
 from chefbot_navigation.slam.pose_graph import PoseGraph
 from chefbot_navigation.slam.scan import Scan, transform_points
-from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match
+from chefbot_navigation.slam.scan_matcher import LikelihoodField, MatchResult, SearchWindow, match
 
 # a tracking match this far from the odometry prediction is logged (stats.events): a mis-match that
 # slips the map shows as one, the usual corrections of noisy wheels are a few cm and a degree or two
@@ -138,6 +147,12 @@ class SlamConfig:
     loop_min_travel: float = 5.0         # m driven since the candidate
     loop_xy: float = 0.3                 # m, loop search half-window
     loop_yaw: float = 0.35               # rad, loop search half-window
+    loop_max_xy: float = 3.0             # m; the loop search half-window grows to 3 sigma of the drift since the
+    #                                      candidates were mapped (loop_drift_*, blind motion), up to this
+    loop_max_yaw: float = 0.8            # [rad] the same for the yaw half-window (> 0)
+    loop_drift_xy: float = 0.01          # [m/m] position std-dev a matched step adds per metre driven (tracking
+    #                                      drift; an unmatched one adds its odometry prior's: srr, srt, blind_slip)
+    loop_drift_yaw: float = 0.005        # [rad/m] heading std-dev a matched step adds per metre driven (>= 0)
     loop_min_score: float = 0.7          # mean likelihood to accept a loop closure
     loop_max_spread: float = 0.05        # m, reject an ambiguous closure (corridor aliasing)
     loop_every: int = 3                  # keyframes between loop-closure attempts; a keyframe that moved n times
@@ -183,10 +198,9 @@ class SlamConfig:
     def validate(self) -> None:
         """Raise ValueError naming the first parameter out of range."""
         positive = ("delta", "maxUrange", "sigma", "match_xy", "match_yaw", "match_yaw_step", "loop_search_radius",
-                    "loop_xy", "loop_yaw", "loop_max_spread", "loop_confirm_fit", "loop_border_gain", "loop_sure_score",
-                    "loop_confirm_xy",
-                    "loop_confirm_yaw", "edge_sigma_xy", "edge_sigma_yaw",
-                    "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw",
+                    "loop_xy", "loop_yaw", "loop_max_xy", "loop_max_yaw", "loop_max_spread", "loop_confirm_fit",
+                    "loop_border_gain", "loop_sure_score", "loop_confirm_xy", "loop_confirm_yaw", "edge_sigma_xy",
+                    "edge_sigma_yaw", "loop_sigma_xy", "loop_sigma_yaw", "refine_min_travel", "refine_xy", "refine_yaw",
                     "refine_max_spread", "turn_calibration_min", "turn_scale_limit", "odometry_calibration_min",
                     "distance_scale_limit", "drift_limit", "calibration_max_spread", "beams_per_dof", "max_xy",
                     "sigma_xy_min", "sigma_yaw_min", "l_occ", "l_clamp")
@@ -196,7 +210,7 @@ class SlamConfig:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
                      "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip",
-                     "contact_radius", "imu_slip_yaw", "bumper_hold_after"):
+                     "contact_radius", "imu_slip_yaw", "bumper_hold_after", "loop_drift_xy", "loop_drift_yaw"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -223,6 +237,8 @@ class Keyframe:
     travel: float
     integrated: Pose2D | None = None      # pose whose ray-cast is in the grid
     heading: float | None = None          # IMU heading (rad, unwrapped; imu_heading) at t, None without an IMU
+    drift: tuple[float, float] = (0.0, 0.0)   # (m, rad) std-devs of the drift accumulated along the chain of
+    #                                          keyframes since the first (or the last loop closure): Slam._loop_window
 
 
 @dataclass
@@ -248,6 +264,7 @@ class SlamStats:
     loop_unconfirmed: int = 0            # held loop matches that no second match confirmed (_close_loop)
     loop_no_maximum: int = 0             # loop matches still on the window's edge after LOOP_RECENTRES searches
     loop_outliers: int = 0               # loop edges the robust optimisation down-weighted (PoseGraph.outliers)
+    loop_window: float = 0.0             # m, widest widened loop search half-window so far (0: none was widened)
     optimisations: int = 0
     reintegrated: int = 0
     turn_scale: float = 1.0              # learned odometry turn scale in use (1: none yet)
@@ -378,7 +395,7 @@ class Slam:
                 self._held = held.compose(odom.inverse())
             return held
         self._held, self._stall = None, False
-        pose, blind = predicted, None
+        pose, blind, ok = predicted, None, False
         if c.scan_matching:
             # odometry error since the last accepted match (keyframes in between were blind)
             dist, turn = self._blind[0] + moved, self._blind[1] + abs(step.yaw if slipped else rel.yaw)
@@ -416,6 +433,7 @@ class Slam:
             self._blind = (0.0, 0.0) if ok else (dist, turn)
             blind = None if ok else (sxy, syaw)
         self._add_keyframe(t, scan, odom, pose, last.travel + moved, blind, heading)
+        self.keyframes[-1].drift = self._drift(last.drift, moved, abs(step.yaw), ok, blind is not None)
         self._scans.append((t, len(self.keyframes) - 1, odom))
         if c.loop_closure:
             # with one scan per 0.7 m an attempt every 3rd keyframe is one per ~2 m; counted by distance,
@@ -425,6 +443,28 @@ class Slam:
                 self._since_loop = 0.0
                 self._close_loop()
         return self.graph.poses[-1]
+
+    def _drift(self, before: tuple[float, float], moved: float, turned: float, matched: bool,
+               blind: bool) -> tuple[float, float]:
+        """The chain's drift std-devs (m, rad) after a keyframe step of ``moved`` m and ``turned`` rad:
+        a ``matched`` step adds loop_drift_xy / loop_drift_yaw per metre (tracking against the local map
+        drifts slowly), any other the odometry prior's growth (srr, srt, str, stt), plus blind_slip per
+        metre when it was ``blind`` (unmatched: wheels may have slipped against an obstacle).  Added, not
+        in quadrature: drift is mostly systematic (a wheel radius, a turn scale)."""
+        c = self.cfg
+        if matched:
+            return before[0] + c.loop_drift_xy * moved, before[1] + c.loop_drift_yaw * moved
+        xy = c.srr * moved + c.srt * turned + (c.blind_slip * moved if blind else 0.0)
+        return before[0] + xy, before[1] + c.str * moved + c.stt * turned
+
+    def _loop_window(self, i: int, cur: int) -> tuple[float, float]:
+        """Loop search half-widths (m, rad) for matching keyframe ``cur`` against keyframe ``i``: 3 std-devs
+        of the drift accumulated between them (their Keyframe.drift differ by it; a loop closure resets the
+        chain to its anchor's), at least loop_xy / loop_yaw, at most loop_max_xy / loop_max_yaw."""
+        c = self.cfg
+        a, b = self.keyframes[i].drift, self.keyframes[cur].drift
+        return (min(max(c.loop_xy, 3.0 * abs(b[0] - a[0])), max(c.loop_xy, c.loop_max_xy)),
+                min(max(c.loop_yaw, 3.0 * abs(b[1] - a[1])), max(c.loop_yaw, c.loop_max_yaw)))
 
     def _learn_bias(self, rel: Pose2D, matched: Pose2D, spread: float) -> None:
         """Feed a step between two matched keyframes to the odometry-bias estimate (:mod:`odometry_bias`:
@@ -610,31 +650,52 @@ class Slam:
         pose = self.graph.poses[cur]
         if len(kf.scan.hits) < c.min_match_beams:
             return
-        cands = [i for i in range(cur)
-                 if kf.travel - self.keyframes[i].travel > c.loop_min_travel
-                 and self.graph.poses[i].distance(pose) < c.loop_search_radius]
-        ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in cands
-               if len(self.keyframes[i].scan.hits)]
-        if not ref:
+        # first the fixed window around the keyframes within loop_search_radius; when that finds nothing and
+        # the drift since some old keyframe has grown its window (_loop_window: after a long blind or
+        # unconstrained stretch the robot may come back metres and tens of degrees off, issue 30), a widened
+        # search over those - cheap (branch and bound) but it sees more look-alikes, so its match must be sure
+        # and confirmed by a second one (below)
+        near, wide, wxy, wyaw = [], [], c.loop_xy, c.loop_yaw
+        for i in range(cur):
+            if kf.travel - self.keyframes[i].travel <= c.loop_min_travel:
+                continue
+            d = self.graph.poses[i].distance(pose)
+            if d < c.loop_search_radius:
+                near.append(i)
+            ixy, iyaw = self._loop_window(i, cur)
+            if (ixy > c.loop_xy or iyaw > c.loop_yaw) and d < c.loop_search_radius + ixy - c.loop_xy:
+                wide.append(i)
+                wxy, wyaw = max(wxy, ixy), max(wyaw, iyaw)
+        stages = [(near, c.loop_xy, c.loop_yaw, False)]
+        if wide:
+            stages.append((sorted(set(near) | set(wide)), wxy, wyaw, True))
+        found = dropped = None
+        for cands, sxy, syaw, widened in stages:
+            got = self._loop_search(kf, pose, cands, sxy, syaw, widened)
+            if got is None:
+                continue
+            res, fld, recentred = got
+            if res.on_border and res.score >= c.loop_min_score:
+                dropped = dropped or (res, recentred)        # it may lie beyond the window: the widened one
+                continue
+            # a widened match inside the fixed window is one the fixed search did not find good: it owes its score
+            # to the far keyframes added, mapped at a drifted pose (hotel, one scan per 0.7 m: 0.2 m / 5 deg off)
+            beyond = not widened or (res.pose.distance(pose) > c.loop_xy
+                                     or abs(wrap_angle(res.pose.yaw - pose.yaw)) > c.loop_yaw)
+            if (res.score >= (c.loop_sure_score if widened else c.loop_min_score) and res.spread <= c.loop_max_spread
+                    and beyond):
+                found = (cands, widened, res, fld, recentred)
+            if res.score >= c.loop_min_score:
+                break       # taken, or a good fit in the fixed window that is ambiguous: a wider search is more so
+        if found is None:
+            if dropped is not None:
+                res, recentred = dropped
+                self.stats.loop_no_maximum += 1
+                self.stats.events.append(f"{EVENT_DROPPED} {cur} dropped: still on the search window's edge after "
+                                         f"{recentred} searches around it, {res.pose.distance(pose):.3f} m off "
+                                         f"(score {res.score:.2f})")
             return
-        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=c.loop_xy + 1.0)
-        window = SearchWindow(c.loop_xy, c.loop_yaw, c.match_yaw_step)
-        res = match(fld, kf.scan.hits, pose, window)
-        # a best pose on the window's edge may be a real drift beyond the window or a slide with no maximum
-        # (two broken live hotel maps: four closures of 0.42-0.45 m, the corner of the 0.3 m window, scoring
-        # 0.76-0.80 from poses fitting 0.00-0.37): search again around it; still on the edge: no closure
-        recentred = 0
-        while res.on_border and res.score >= c.loop_min_score and recentred < LOOP_RECENTRES:
-            res = match(fld, kf.scan.hits, res.pose, window)
-            recentred += 1
-        if res.on_border and res.score >= c.loop_min_score:
-            self.stats.loop_no_maximum += 1
-            self.stats.events.append(f"{EVENT_DROPPED} {cur} dropped: still on the search window's edge after "
-                                     f"{recentred} searches around it, {res.pose.distance(pose):.3f} m off "
-                                     f"(score {res.score:.2f})")
-            return
-        if res.score < c.loop_min_score or res.spread > c.loop_max_spread:
-            return
+        cands, widened, res, fld, recentred = found
         anchor = min(cands, key=lambda i: self.graph.poses[i].distance(res.pose))
         closure = _Closure(cur, anchor, self.graph.poses[anchor].inverse().compose(res.pose),
                            res.pose.compose(pose.inverse()))
@@ -647,7 +708,7 @@ class Slam:
         # the next match within loop_confirm_window keyframes asks for the same correction
         fit = float(fld.score_points(transform_points(pose, kf.scan.hits)).mean())
         doubtful = recentred > 0 or res.score < c.loop_sure_score
-        confirm = fit >= c.loop_confirm_fit or (doubtful and res.score - fit < c.loop_border_gain)
+        confirm = widened or fit >= c.loop_confirm_fit or (doubtful and res.score - fit < c.loop_border_gain)
         pending, self._pending = self._pending, None
         agreed = pending is not None and self._agree(pending, closure)
         if pending is not None and not agreed:
@@ -658,6 +719,9 @@ class Slam:
         if agreed:
             self._add_loop_edge(pending)
         self._add_loop_edge(closure)
+        # the drift since the anchor was mapped is closed: the chain goes on from the anchor's
+        self.keyframes[cur].drift = tuple(a + s for a, s in zip(self.keyframes[anchor].drift,
+                                                                (c.loop_sigma_xy, c.loop_sigma_yaw), strict=True))
         err = res.pose.distance(pose)
         if err < c.delta / 2 and abs(wrap_angle(res.pose.yaw - pose.yaw)) < 0.005:
             return          # consistent already: keep the edge for later optimisations
@@ -666,10 +730,37 @@ class Slam:
         self.stats.events.append(f"{EVENT_CLOSURE} {cur} -> {anchor}: corrected {err:.3f} m, "
                                  f"{math.degrees(abs(wrap_angle(res.pose.yaw - pose.yaw))):.1f} deg "
                                  f"(score {res.score:.2f}, fit before {fit:.2f}"
+                                 f"{f', window {wxy:.2f} m / {math.degrees(wyaw):.0f} deg' if widened else ''}"
                                  f"{f', recentred {recentred}x' if recentred else ''}"
                                  f"{', confirmed' if agreed else ''})")
         self._note_outliers()
         self._reintegrate()
+
+    def _loop_search(self, kf: Keyframe, pose: Pose2D, cands: list[int], wxy: float, wyaw: float,
+                     widened: bool) -> tuple[MatchResult, LikelihoodField, int] | None:
+        """Match ``kf``'s scan from ``pose`` against the obstacle points of keyframes ``cands`` in a window of
+        +-``wxy`` m / +-``wyaw`` rad: (result, field, times recentred), None without points.  A ``widened``
+        search ranks its candidates with the drift as the prior (MAP; window / 3 as the std-devs): a look-alike
+        far away has to fit clearly better than one near the estimate; its yaw step doubles past twice loop_yaw."""
+        c = self.cfg
+        ref = [transform_points(self.graph.poses[i], self.keyframes[i].scan.hits) for i in cands
+               if len(self.keyframes[i].scan.hits)]
+        if not ref:
+            return None
+        fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=wxy + 1.0)
+        window = SearchWindow(wxy, wyaw, c.match_yaw_step * (2 if wyaw > 2 * c.loop_yaw else 1))
+        prior = (wxy / 3.0, wyaw / 3.0) if widened else None
+        if widened:
+            self.stats.loop_window = max(self.stats.loop_window, wxy)
+        res = match(fld, kf.scan.hits, pose, window, prior, c.beams_per_dof)
+        # a best pose on the window's edge may be a real drift beyond the window or a slide with no maximum
+        # (two broken live hotel maps: four closures of 0.42-0.45 m, the corner of the 0.3 m window, scoring
+        # 0.76-0.80 from poses fitting 0.00-0.37): search again around it; still on the edge: no closure
+        recentred = 0
+        while res.on_border and res.score >= c.loop_min_score and recentred < LOOP_RECENTRES:
+            res = match(fld, kf.scan.hits, res.pose, window, prior, c.beams_per_dof)
+            recentred += 1
+        return res, fld, recentred
 
     def _note_outliers(self) -> None:
         """Count the loop edges the robust optimisation down-weighted (:meth:`PoseGraph.outliers`) and log
