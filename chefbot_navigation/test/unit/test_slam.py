@@ -224,7 +224,7 @@ def test_a_long_drift_is_closed_by_a_search_as_wide_as_its_uncertainty():
     assert _double_walls(fixed, segs) > 0.3
 
 
-def test_a_single_look_alike_in_a_widened_loop_search_is_not_used():
+def test_a_single_look_alike_in_a_widened_loop_search_is_not_used(monkeypatch):
     # tracking keeps the drift small, but loop_drift_xy says it may be large: the searches are widened, and the
     # first good one answers 1 m off (a look-alike far away) with a perfect score: it waits for a second match,
     # which finds the truth
@@ -239,18 +239,15 @@ def test_a_single_look_alike_in_a_widened_loop_search_is_not_used():
             res.pose, res.score, res.spread = Pose2D(res.pose.x + 1.0, res.pose.y, res.pose.yaw), 1.0, 0.0
         return res
 
-    mapper.match = look_alike
-    try:
-        slam, segs, err, _ = _run_corridor(cfg)
-    finally:
-        mapper.match = real
+    monkeypatch.setattr(mapper, "match", look_alike)
+    slam, segs, err, _ = _run_corridor(cfg)
     assert len(calls) == 1 and calls[0] > 1.0 and slam.stats.loop_unconfirmed >= 1, (calls, slam.stats)
     assert slam.stats.loop_closures >= 1, slam.stats
     assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
     assert _double_walls(slam, segs) < 0.01
 
 
-def test_a_widened_loop_match_inside_the_fixed_window_is_not_used():
+def test_a_widened_loop_match_inside_the_fixed_window_is_not_used(monkeypatch):
     # the fixed window finds nothing good; the widened one (grown by loop_drift_xy) answers 0.15 m off, inside
     # the fixed window, with a perfect score every time: such a match fits only thanks to the far keyframes it
     # added (mapped at drifted poses), so nothing is closed
@@ -267,11 +264,8 @@ def test_a_widened_loop_match_inside_the_fixed_window_is_not_used():
             res.pose, res.score, res.spread, res.on_border = Pose2D(prior.x + 0.15, prior.y, prior.yaw), 1.0, 0.0, False
         return res
 
-    mapper.match = fixed_blind
-    try:
-        slam, segs, err, _ = _run_corridor(cfg)
-    finally:
-        mapper.match = real
+    monkeypatch.setattr(mapper, "match", fixed_blind)
+    slam, segs, err, _ = _run_corridor(cfg)
     assert widened and slam.stats.loop_closures == 0, (widened, slam.stats)
     assert err.max() < 0.1, (err.max(), slam.stats)
 
