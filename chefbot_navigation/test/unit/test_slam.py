@@ -306,8 +306,9 @@ def test_a_single_look_alike_loop_match_is_not_used():
     assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
     assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
     assert _double_walls(slam, segs) < 0.01
-    # without the confirmation the same answer is taken and bends the map
-    slam, segs, err, _, _ = _corridor_with_a_look_alike(SlamConfig(loop_confirm_fit=1.5))
+    # without the confirmation (the fit test off, every match counted sure) the same answer is taken and bends
+    # the map
+    slam, segs, err, _, _ = _corridor_with_a_look_alike(SlamConfig(loop_confirm_fit=1.5, loop_sure_score=0.7))
     assert slam.stats.loop_unconfirmed == 0 and err.max() > 0.1, (err.max(), slam.stats)
 
 
@@ -331,9 +332,9 @@ def test_a_single_weak_loop_match_is_not_used():
     slam, segs, err, _, calls = _corridor_with_a_look_alike(cfg, score=0.75)
     assert len(calls) == 1 and slam.stats.loop_unconfirmed >= 1, slam.stats
     assert np.sqrt((err ** 2).mean()) < 0.05 and err.max() < 0.1, (err.max(), slam.stats)
-    # the same match scoring as a sure one is taken at once
+    # the same match scoring as a sure one is taken at once and bends the map
     slam, _, err, _, _ = _corridor_with_a_look_alike(cfg, score=0.95)
-    assert slam.stats.loop_unconfirmed == 0 and err.max() > 0.1, (err.max(), slam.stats)
+    assert err.max() > 0.1, (err.max(), slam.stats)
 
 
 def test_loop_matches_that_agree_are_used():

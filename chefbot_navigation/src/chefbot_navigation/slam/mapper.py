@@ -106,7 +106,7 @@ class SlamConfig:
     ymin: float = -10.0                  # [m] initial map extent, lowest y (< ymax)
     xmax: float = 10.0                   # [m] initial map extent, highest x
     ymax: float = 10.0                   # [m] initial map extent, highest y
-    sigma: float = 0.07                  # m, blur of the likelihood field
+    sigma: float = 0.05                  # m, blur of the likelihood field
     scan_matching: bool = True           # False: raw odometry (for comparison only)
     match_xy: float = 0.25               # m, tracking search half-window
     match_yaw: float = 0.25              # rad, tracking search half-window
@@ -114,7 +114,7 @@ class SlamConfig:
     srr: float = 0.1                     # [m/m] odometry translation error per metre driven (>= 0)
     srt: float = 0.05                    # [m/rad] translation error per radian turned (>= 0)
     str: float = 0.1                     # [rad/m] rotation error per metre driven (>= 0)
-    stt: float = 0.3                     # [rad/rad] rotation error per radian turned (wheel slip; >= 0)
+    stt: float = 0.15                    # [rad/rad] rotation error per radian turned (wheel slip; >= 0)
     turn_calibration: bool = True        # learn the odometry's turn scale from matched spins (wheel slip)
     turn_calibration_min: float = 6.0    # rad of matched in-place turning before the learned scale is used
     turn_scale_limit: float = 0.15       # [fraction] the learned scale stays within 1 +- this (> 0)
