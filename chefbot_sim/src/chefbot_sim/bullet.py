@@ -43,7 +43,11 @@ GROUP_RAY = 1
 GROUP_ROBOT = 2
 GROUP_FLOOR = 4
 GROUP_WORLD = 8
-GROUP_ALL = 0xFFFF
+GROUP_ALL = 0x7FFFFFFF
+# Several robots in one world: each also carries its own bit, from ROBOT_BIT0 up, so that
+# its sensors' rays can hit the others' bodies but never its own.
+ROBOT_BIT0 = 4
+MAX_ROBOTS = 26
 # pybullet turns a URDF cylinder into a convex hull with a collision margin;
 # measured: such a 0.045 m wheel rolls like a 0.04625 m one (2.8 % more ground
 # per turn than odometry assumes).  The physics copy of the wheel is shrunk by
@@ -84,7 +88,8 @@ def display_problem() -> str | None:
 
 
 class BulletSim:
-    """A pybullet world with one robot.
+    """A pybullet world with its robots (:meth:`add_robot`; the first one's methods are on this
+    class too, for a one-robot world).
 
     ``gui`` opens pybullet's own viewer; without a usable display that raises
     :class:`BulletError` saying so (instead of pybullet ending the process);
@@ -109,11 +114,6 @@ class BulletSim:
                                           numSolverIterations=int(solver_iterations))
         # hot calls bound once (BulletClient builds a partial on every attribute access)
         self._step = self._c.stepSimulation
-        self._get_joint_states = self._c.getJointStates
-        self._get_base_pose = self._c.getBasePositionAndOrientation
-        self._get_base_velocity = self._c.getBaseVelocity
-        self._get_link_state = self._c.getLinkState
-        self._base_from_inertial: tuple | None = None
         self._c.setGravity(0.0, 0.0, -9.81)
         if self.gui:
             self._c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
@@ -127,11 +127,10 @@ class BulletSim:
         self._c.changeVisualShape(self.floor, -1, rgbaColor=(0.85, 0.85, 0.8, 1.0))
         # rays answer only when asked for the floor (cast_rays(floor=True): the cliff sensors)
         self._c.setCollisionFilterGroupMask(self.floor, -1, GROUP_FLOOR, GROUP_ROBOT | GROUP_RAY)
-        self.robot: int | None = None
-        self._joints: dict[str, int] = {}
-        self._links: dict[str, int] = {}
+        self.robots: list[RobotBody] = []       # in load order
+        self.robot: int | None = None             # the first robot's body id (one-robot API)
+        self.body: RobotBody | None = None        # the first robot
         self.bodies: dict[str, int] = {}
-        self._fixed: dict[str, tuple[str, np.ndarray]] = {}
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -193,15 +192,28 @@ class BulletSim:
             raise BulletError(f"no body named '{name}'")
         self._c.removeBody(self.bodies.pop(name))
 
-    # ------------------------------------------------------------ robot
+    # ------------------------------------------------------------ robots
     def load_robot(self, urdf_xml: str, pose: Pose2D, base_friction: float = 0.0,
-                   wheel_contact_correction: float = WHEEL_CONTACT_CORRECTION, z: float = 0.0) -> None:
-        """Load the robot from a URDF string with its root (``base_footprint``) at ``pose``,
-        ``z`` m above the world origin (the height of the surface it stands on).
+                   wheel_contact_correction: float = WHEEL_CONTACT_CORRECTION, z: float = 0.0) -> RobotBody:
+        """Load THE robot of a one-robot world (see :meth:`add_robot`); the robot methods of
+        this class (:meth:`frame_pose`, :meth:`joint_states`, ...) act on it."""
+        if self.robots:
+            raise BulletError("a robot is loaded already")
+        return self.add_robot(urdf_xml, pose, base_friction, wheel_contact_correction, z)
+
+    def add_robot(self, urdf_xml: str, pose: Pose2D, base_friction: float = 0.0,
+                  wheel_contact_correction: float = WHEEL_CONTACT_CORRECTION, z: float = 0.0,
+                  name: str = "") -> RobotBody:
+        """Load a robot from a URDF string with its root (``base_footprint``) at ``pose``,
+        ``z`` m above the world origin (the height of the surface it stands on); returns its
+        :class:`RobotBody`.  Several robots may share the world (up to :data:`MAX_ROBOTS`):
+        each one's sensors see the others' bodies (never its own), and robots collide with
+        each other, the world and the floor.  ``name`` (default ``robot<i>``) is what
+        :meth:`body_name` answers for its body.
 
         Inertia comes from the URDF.  Fixed links are merged into their parent
         body (3× faster physics); their frames stay available by name through
-        :meth:`frame_pose`, computed from the URDF's fixed joints.  Links without
+        :meth:`RobotBody.frame_pose`, computed from the URDF's fixed joints.  Links without
         ``<inertial>`` (pure frames such as ``camera_depth_optical_frame``) get a
         negligible mass instead of pybullet's default 1 kg.  The merged base gets
         ``base_friction``: the book's casters are frictionless balls, and the
@@ -209,8 +221,11 @@ class BulletSim:
         continuous joints (the wheels) shrink by ``wheel_contact_correction`` m
         so that they roll with the URDF radius (see WHEEL_CONTACT_CORRECTION).
         """
-        if self.robot is not None:
-            raise BulletError("a robot is loaded already")
+        if len(self.robots) >= MAX_ROBOTS:
+            raise BulletError(f"at most {MAX_ROBOTS} robots share one world")
+        name = name or f"robot{len(self.robots)}"
+        if any(r.name == name for r in self.robots) or name in self.bodies or name == "floor":
+            raise BulletError(f"a body named '{name}' exists already")
         try:
             root = ET.fromstring(urdf_xml)
         except ET.ParseError as e:
@@ -230,13 +245,12 @@ class BulletSim:
                 # the casters shrink alike so the wheels still carry their share of the weight
                 for sph in link.findall("collision/geometry/sphere"):
                     sph.set("radius", repr(float(sph.get("radius")) - wheel_contact_correction))
-        self._fixed = _fixed_joint_tree(root)
         fd, path = tempfile.mkstemp(prefix="chefbot_", suffix=".urdf")
         try:
             with os.fdopen(fd, "wb") as f:
                 f.write(ET.tostring(root))
             with self.no_rendering(), _quiet_stdout():  # pybullet prints every merged link
-                self.robot = self._c.loadURDF(
+                body = self._c.loadURDF(
                     path, basePosition=(pose.x, pose.y, float(z)),
                     baseOrientation=self._c.getQuaternionFromEuler((0, 0, pose.yaw)),
                     flags=pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_MERGE_FIXED_LINKS)
@@ -244,110 +258,48 @@ class BulletSim:
             raise BulletError(f"pybullet could not load the robot URDF: {e}") from e
         finally:
             os.unlink(path)
-        c, r = self._c, self.robot
-        self._links = {c.getBodyInfo(r)[0].decode(): -1}
-        self._joints = {}
-        for j in range(c.getNumJoints(r)):
-            info = c.getJointInfo(r, j)
-            self._joints[info[1].decode()] = j
-            self._links[info[12].decode()] = j
-        c.changeDynamics(r, -1, lateralFriction=base_friction, rollingFriction=0.0, spinningFriction=0.0)
-        for idx in self._links.values():
-            c.setCollisionFilterGroupMask(r, idx, GROUP_ROBOT, GROUP_ALL)
-        # pybullet's default velocity motors hold every joint still: release them
-        for j in self.movable_joints().values():
-            c.setJointMotorControl2(r, j, pybullet.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0)
+        robot = RobotBody(self, body, name, len(self.robots), _fixed_joint_tree(root), base_friction)
+        self.robots.append(robot)
+        if self.robot is None:
+            self.robot, self.body = body, robot
+        return robot
 
+    def _primary(self) -> RobotBody:
+        if self.body is None:
+            raise BulletError("no robot loaded")
+        return self.body
+
+    # the one-robot API: the first robot loaded (RobotBody has the documentation)
     def frame(self, name: str) -> tuple[int, np.ndarray]:
-        """A robot frame by URDF link name: (pybullet link index, 4×4 fixed offset
-        from that body link's frame).  BulletError names a missing frame."""
-        self._need_robot()
-        offset = np.eye(4)
-        cur = name
-        while cur not in self._links:
-            if cur not in self._fixed:
-                raise BulletError(f"robot has no link '{name}'")
-            parent, tf = self._fixed[cur]
-            offset = tf @ offset
-            cur = parent
-        return self._links[cur], offset
+        return self._primary().frame(name)
 
     def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """World position (m) and 3×3 rotation of the robot frame ``name``."""
-        link, offset = self.frame(name)
-        p, q = self.link_pose(link)
-        rot = np.array(self._c.getMatrixFromQuaternion(q)).reshape(3, 3)
-        return p + rot @ offset[:3, 3], rot @ offset[:3, :3]
-
-    def _need_robot(self) -> int:
-        if self.robot is None:
-            raise BulletError("no robot loaded")
-        return self.robot
+        return self._primary().frame_pose(name)
 
     def joint(self, name: str) -> int:
-        """Index of the robot joint ``name`` (BulletError names a missing one)."""
-        self._need_robot()
-        try:
-            return self._joints[name]
-        except KeyError:
-            raise BulletError(f"robot has no joint '{name}' (has: {', '.join(sorted(self._joints))})") from None
+        return self._primary().joint(name)
 
     def movable_joints(self) -> dict[str, int]:
-        """Non-fixed joints of the robot, name → index, in index order."""
-        r = self._need_robot()
-        return {n: j for n, j in self._joints.items()
-                if self._c.getJointInfo(r, j)[2] != pybullet.JOINT_FIXED}
+        return self._primary().movable_joints()
 
     def set_joint_velocities(self, joints: Sequence[int], velocities: Sequence[float],
                              max_torque: float | Sequence[float]) -> None:
-        """Velocity-control motors: target rad/s, torque limit N·m (one for all, or one per joint)."""
-        forces = [float(max_torque)] * len(joints) if isinstance(max_torque, (int, float)) else list(max_torque)
-        self._c.setJointMotorControlArray(self._need_robot(), list(joints), pybullet.VELOCITY_CONTROL,
-                                          targetVelocities=list(velocities), forces=forces)
+        self._primary().set_joint_velocities(joints, velocities, max_torque)
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (rad) and velocities (rad/s) of the given joints."""
-        st = self._get_joint_states(self._need_robot(), list(joints))
-        return np.array([s[0] for s in st]), np.array([s[1] for s in st])
+        return self._primary().joint_states(joints)
 
     def base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Root link position (m), quaternion, linear (m/s) and angular (rad/s)
-        velocity, all in the world frame.
-
-        The root is ``base_footprint``: pybullet's base frame is the root's
-        inertial frame, so the URDF link frame is recovered here.
-        """
-        r = self._need_robot()
-        c = self._c
-        pos, quat = self._get_base_pose(r)
-        lin, ang = self._get_base_velocity(r)
-        if self._base_from_inertial is None:  # constant once the robot is loaded
-            inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
-            self._base_from_inertial = c.invertTransform(inertial_pos, inertial_orn)
-        pos, quat = c.multiplyTransforms(pos, quat, *self._base_from_inertial)
-        return np.array(pos), np.array(quat), np.array(lin), np.array(ang)
+        return self._primary().base_state()
 
     def link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
-        """World position (m) and quaternion of a robot link's URDF frame."""
-        if link == -1:
-            p, q, _, _ = self.base_state()
-            return p, q
-        # the link frame is the joint frame: world link frame = URDF child link frame
-        st = self._get_link_state(self._need_robot(), link, computeForwardKinematics=True)
-        return np.array(st[4]), np.array(st[5])
+        return self._primary().link_pose(link)
 
     def teleport(self, pose: Pose2D, z: float = 0.0) -> None:
-        """Put the robot's root at ``pose``, ``z`` m up (at rest, wheels stopped)."""
-        r = self._need_robot()
-        c = self._c
-        inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
-        q = c.getQuaternionFromEuler((0.0, 0.0, pose.yaw))
-        p, q2 = c.multiplyTransforms((pose.x, pose.y, z), q, inertial_pos, inertial_orn)
-        c.resetBasePositionAndOrientation(r, p, q2)
-        c.resetBaseVelocity(r, (0, 0, 0), (0, 0, 0))
-        for j in self.movable_joints().values():
-            pos = c.getJointState(r, j)[0]
-            c.resetJointState(r, j, pos, 0.0)
+        self._primary().teleport(pose, z)
+
+    def robot_contacts(self) -> list[tuple[str, int, np.ndarray]]:
+        return self._primary().contacts()
 
     # ------------------------------------------------------------ stepping, state
     def step(self, n: int = 1) -> None:
@@ -369,11 +321,14 @@ class BulletSim:
         self._c.removeState(state_id)
 
     # ------------------------------------------------------------ sensing
-    def cast_rays(self, origins: np.ndarray, ends: np.ndarray, floor: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """Cast rays from ``origins`` to ``ends`` ((N, 3) world, m) against the world
-        (and the floor when ``floor``), never the robot, in one ``rayTestBatch``.
-        Returns hit fractions in [0, 1] (1 = no hit) and the hit body ids (-1 = none)."""
-        mask = GROUP_WORLD | GROUP_FLOOR if floor else GROUP_WORLD
+    def cast_rays(self, origins: np.ndarray, ends: np.ndarray, floor: bool = False,
+                  robots: int = 0, world: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Cast rays from ``origins`` to ``ends`` ((N, 3) world, m) against the world's shapes
+        (unless not ``world``) and the floor (when ``floor``) in one ``rayTestBatch``; robot
+        bodies only where ``robots`` (a mask of :attr:`RobotBody.group_bit`) names them (by
+        default none: a one-robot world's sensors never see their own robot).  Returns hit
+        fractions in [0, 1] (1 = no hit) and the hit body ids (-1 = none)."""
+        mask = (GROUP_WORLD if world else 0) | (GROUP_FLOOR if floor else 0) | int(robots)
         out = self._c.rayTestBatch(np.ascontiguousarray(origins, float), np.ascontiguousarray(ends, float),
                                    numThreads=0, collisionFilterMask=mask)
         ids = np.fromiter((h[0] for h in out), dtype=np.int64, count=len(out))
@@ -388,7 +343,8 @@ class BulletSim:
 
         ``fy`` is the focal length in pixels (square pixels).  Returns the RGB
         image (H, W, 3) uint8 when ``rgb`` and the depth along the optical axis
-        (H, W) in m (``inf`` where nothing is within ``far``).
+        (H, W) in m (``inf`` where nothing is within ``far``).  Every body is drawn,
+        the other robots included.
         """
         fwd, down = rotation[:, 2], rotation[:, 1]
         view = self._c.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), (-down).tolist())
@@ -405,25 +361,163 @@ class BulletSim:
             image = np.asarray(px, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
         return image, depth
 
-    def robot_contacts(self) -> list[tuple[str, int, np.ndarray]]:
-        """Contacts of the robot with anything but what it stands on (the floor, or the
-        top of a platform: contacts whose normal is within ~45° of vertical):
-        (robot link name, other body id, world contact point m)."""
-        r = self._need_robot()
-        names = {v: k for k, v in self._links.items()}
-        out = []
-        for cp in self._c.getContactPoints(bodyA=r):
-            if cp[2] == self.floor or cp[2] == r or abs(cp[7][2]) > SUPPORT_NORMAL_Z:
-                continue
-            out.append((names.get(cp[3], str(cp[3])), cp[2], np.array(cp[5])))
-        return out
-
     def body_name(self, body: int) -> str:
-        """Name of a loaded body id ("floor", or the id as text when unknown)."""
+        """Name of a loaded body id: a shape's or robot's name, "floor", or the id as text when unknown."""
         for k, v in self.bodies.items():
             if v == body:
                 return k
+        for r in self.robots:
+            if r.id == body:
+                return r.name
         return "floor" if body == self.floor else str(body)
+
+
+class RobotBody:
+    """One robot of a :class:`BulletSim` world: its joints, links and frames by URDF name,
+    its motors, state, contacts, and rays that see everything but itself.  Made by
+    :meth:`BulletSim.add_robot`."""
+
+    def __init__(self, world: BulletSim, body: int, name: str, index: int,
+                 fixed: dict[str, tuple[str, np.ndarray]], base_friction: float) -> None:
+        self.world, self.id, self.name, self.index = world, body, name, index
+        # own collision bit besides GROUP_ROBOT: the others' rays may name it, its own never do
+        self.group_bit = 1 << (ROBOT_BIT0 + index)
+        self._fixed = fixed
+        self._base_from_inertial: tuple | None = None
+        c = self._c = world._c
+        self._get_joint_states = c.getJointStates
+        self._get_base_pose = c.getBasePositionAndOrientation
+        self._get_base_velocity = c.getBaseVelocity
+        self._get_link_state = c.getLinkState
+        self._links = {c.getBodyInfo(body)[0].decode(): -1}
+        self._joints: dict[str, int] = {}
+        for j in range(c.getNumJoints(body)):
+            info = c.getJointInfo(body, j)
+            self._joints[info[1].decode()] = j
+            self._links[info[12].decode()] = j
+        c.changeDynamics(body, -1, lateralFriction=base_friction, rollingFriction=0.0, spinningFriction=0.0)
+        for idx in self._links.values():
+            c.setCollisionFilterGroupMask(body, idx, GROUP_ROBOT | self.group_bit, GROUP_ALL)
+        # pybullet's default velocity motors hold every joint still: release them
+        for j in self.movable_joints().values():
+            c.setJointMotorControl2(body, j, pybullet.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0)
+
+    def others_mask(self) -> int:
+        """Collision bits of every other robot in the world (what this robot's rays may hit)."""
+        mask = 0
+        for r in self.world.robots:
+            if r is not self:
+                mask |= r.group_bit
+        return mask
+
+    def frame(self, name: str) -> tuple[int, np.ndarray]:
+        """A robot frame by URDF link name: (pybullet link index, 4×4 fixed offset
+        from that body link's frame).  BulletError names a missing frame."""
+        offset = np.eye(4)
+        cur = name
+        while cur not in self._links:
+            if cur not in self._fixed:
+                raise BulletError(f"robot has no link '{name}'")
+            parent, tf = self._fixed[cur]
+            offset = tf @ offset
+            cur = parent
+        return self._links[cur], offset
+
+    def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position (m) and 3×3 rotation of the robot frame ``name``."""
+        link, offset = self.frame(name)
+        p, q = self.link_pose(link)
+        rot = np.array(self._c.getMatrixFromQuaternion(q)).reshape(3, 3)
+        return p + rot @ offset[:3, 3], rot @ offset[:3, :3]
+
+    def joint(self, name: str) -> int:
+        """Index of the robot joint ``name`` (BulletError names a missing one)."""
+        try:
+            return self._joints[name]
+        except KeyError:
+            raise BulletError(f"robot has no joint '{name}' (has: {', '.join(sorted(self._joints))})") from None
+
+    def movable_joints(self) -> dict[str, int]:
+        """Non-fixed joints of the robot, name → index, in index order."""
+        return {n: j for n, j in self._joints.items()
+                if self._c.getJointInfo(self.id, j)[2] != pybullet.JOINT_FIXED}
+
+    def set_joint_velocities(self, joints: Sequence[int], velocities: Sequence[float],
+                             max_torque: float | Sequence[float]) -> None:
+        """Velocity-control motors: target rad/s, torque limit N·m (one for all, or one per joint)."""
+        forces = [float(max_torque)] * len(joints) if isinstance(max_torque, (int, float)) else list(max_torque)
+        self._c.setJointMotorControlArray(self.id, list(joints), pybullet.VELOCITY_CONTROL,
+                                          targetVelocities=list(velocities), forces=forces)
+
+    def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (rad) and velocities (rad/s) of the given joints."""
+        st = self._get_joint_states(self.id, list(joints))
+        return np.array([s[0] for s in st]), np.array([s[1] for s in st])
+
+    def base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Root link position (m), quaternion, linear (m/s) and angular (rad/s)
+        velocity, all in the world frame.
+
+        The root is ``base_footprint``: pybullet's base frame is the root's
+        inertial frame, so the URDF link frame is recovered here.
+        """
+        r, c = self.id, self._c
+        pos, quat = self._get_base_pose(r)
+        lin, ang = self._get_base_velocity(r)
+        if self._base_from_inertial is None:  # constant once the robot is loaded
+            inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
+            self._base_from_inertial = c.invertTransform(inertial_pos, inertial_orn)
+        pos, quat = c.multiplyTransforms(pos, quat, *self._base_from_inertial)
+        return np.array(pos), np.array(quat), np.array(lin), np.array(ang)
+
+    def link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
+        """World position (m) and quaternion of a robot link's URDF frame."""
+        if link == -1:
+            p, q, _, _ = self.base_state()
+            return p, q
+        # the link frame is the joint frame: world link frame = URDF child link frame
+        st = self._get_link_state(self.id, link, computeForwardKinematics=True)
+        return np.array(st[4]), np.array(st[5])
+
+    def teleport(self, pose: Pose2D, z: float = 0.0) -> None:
+        """Put the robot's root at ``pose``, ``z`` m up (at rest, wheels stopped)."""
+        r, c = self.id, self._c
+        inertial_pos, inertial_orn = c.getDynamicsInfo(r, -1)[3:5]
+        q = c.getQuaternionFromEuler((0.0, 0.0, pose.yaw))
+        p, q2 = c.multiplyTransforms((pose.x, pose.y, z), q, inertial_pos, inertial_orn)
+        c.resetBasePositionAndOrientation(r, p, q2)
+        c.resetBaseVelocity(r, (0, 0, 0), (0, 0, 0))
+        for j in self.movable_joints().values():
+            pos = c.getJointState(r, j)[0]
+            c.resetJointState(r, j, pos, 0.0)
+
+    def cast_rays(self, origins: np.ndarray, ends: np.ndarray, floor: bool = False,
+                  robots: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`BulletSim.cast_rays` from this robot's sensors: the world, the floor when
+        ``floor``, the other robots when ``robots``, never this robot's own body."""
+        return self.world.cast_rays(origins, ends, floor, self.others_mask() if robots else 0)
+
+    def render(self, width: int, height: int, eye: np.ndarray, rotation: np.ndarray,
+               fy: float, near: float, far: float, rgb: bool) -> tuple[np.ndarray | None, np.ndarray]:
+        """:meth:`BulletSim.render` (for a camera on this robot)."""
+        return self.world.render(width, height, eye, rotation, fy, near, far, rgb)
+
+    def touches(self, other: RobotBody, margin: float = 0.0) -> bool:
+        """Whether this robot's body is within ``margin`` m of ``other``'s (or inside it)."""
+        return bool(self._c.getClosestPoints(self.id, other.id, float(margin)))
+
+    def contacts(self) -> list[tuple[str, int, np.ndarray]]:
+        """Contacts of the robot with anything but what it stands on (the floor, or the
+        top of a platform: contacts whose normal is within ~45° of vertical), other robots
+        included: (robot link name, other body id, world contact point m)."""
+        r = self.id
+        names = {v: k for k, v in self._links.items()}
+        out = []
+        for cp in self._c.getContactPoints(bodyA=r):
+            if cp[2] == self.world.floor or cp[2] == r or abs(cp[7][2]) > SUPPORT_NORMAL_Z:
+                continue
+            out.append((names.get(cp[3], str(cp[3])), cp[2], np.array(cp[5])))
+        return out
 
 
 @contextlib.contextmanager

@@ -43,6 +43,7 @@ from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
+ROBOT_REACH = 1.0    # m: bound on a robot body's extent from its base_footprint (culls far robots from rays)
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper",
            "lidar")
 DRIVES = ("plugin", "firmware")
@@ -276,31 +277,42 @@ class Simulator:
     """
 
     def __init__(self, urdf_xml: str, world: World, start: Pose2D = ORIGIN,
-                 options: SimOptions | None = None, gui: bool = False) -> None:
+                 options: SimOptions | None = None, gui: bool = False, shared: BulletSim | None = None,
+                 name: str = "") -> None:
         self.options = options or SimOptions()
         self.options.validate()
         self.params = load_params(urdf_xml)
         self.world = world
         self.start = start
-        self.bullet = BulletSim(gui=gui, time_step=self.options.time_step,
-                                solver_iterations=self.options.solver_iterations)
-        self.bullet.load_world(world)
+        # shared: a world several robots live in (chefbot_sim.fleet.Fleet steps it; this object is one
+        # robot in it, named ``name``); else this Simulator owns its world
+        self.shared = shared is not None
+        if shared is None:
+            self.bullet = BulletSim(gui=gui, time_step=self.options.time_step,
+                                    solver_iterations=self.options.solver_iterations)
+            self.bullet.load_world(world)
+        else:
+            self.bullet = shared
         # the robot stands on whatever is under its start pose (a stage, a platform)
-        self.bullet.load_robot(urdf_xml, start, z=world.surface_height(start.x, start.y))
+        try:
+            self.body = self.bullet.add_robot(urdf_xml, start, z=world.surface_height(start.x, start.y), name=name)
+        except BulletError:
+            self._close_world()
+            raise
         p = self.params
-        self._wheels = [self.bullet.joint(p.drive.left_joint), self.bullet.joint(p.drive.right_joint)]
-        self.joint_names = list(self.bullet.movable_joints())
-        self._joint_idx = [self.bullet.movable_joints()[n] for n in self.joint_names]
+        self._wheels = [self.body.joint(p.drive.left_joint), self.body.joint(p.drive.right_joint)]
+        self.joint_names = list(self.body.movable_joints())
+        self._joint_idx = [self.body.movable_joints()[n] for n in self.joint_names]
         for name in (p.depth_camera.depth_frame, p.depth_camera.rgb_frame, p.imu.frame,
                      p.ultrasonic.frame, p.drive.base_frame, p.bumper.link):
-            self.bullet.frame(name)  # fail now, naming the frame, not at the first reading
+            self.body.frame(name)  # fail now, naming the frame, not at the first reading
         self._build_cliffs()
         cam = p.depth_camera
         self.depth_camera = CameraModel.from_fov(cam.width, cam.height, cam.horizontal_fov)
         self.rgb_camera = CameraModel.from_fov(self.options.rgb_width, self.options.rgb_height, cam.horizontal_fov)
         # rendered images and clouds (chefbot_sim.camera); dense_depth: depth by rendering every pixel
         # instead of band + coarse rays (the node sets it while camera/depth/points is subscribed)
-        self.rgbd = RgbdRenderer(self.bullet, self.rgb_camera, self.depth_camera, cam.rgb_frame,
+        self.rgbd = RgbdRenderer(self.body, self.rgb_camera, self.depth_camera, cam.rgb_frame,
                                  cam.depth_frame, cam.min_range, cam.max_range)
         self.dense_depth = False
         self.last_rgb: RgbFrame | None = None
@@ -311,9 +323,9 @@ class Simulator:
         self.lidar = self.options.lidar_config()
         if self.lidar is not None:
             try:
-                self.bullet.frame(self.lidar.frame)
+                self.body.frame(self.lidar.frame)
             except BulletError as e:
-                self.bullet.close()
+                self._close_world()
                 raise SimConfigError(f"lidar_fov is {self.lidar.fov:g} but the robot has no frame "
                                      f"'{self.lidar.frame}' (expand the xacro with lidar:=360 or lidar:=270, "
                                      f"or set lidar_frame): {e}") from None
@@ -334,16 +346,17 @@ class Simulator:
         self.enabled = {k: v > 0 for k, v in self.rates.items()}
         self.rng = np.random.default_rng(self.options.seed)
         self.s = _State(due={k: 1.0 / r if r > 0 else math.inf for k, r in self.rates.items()})
+        self._next_due = min(self.s.due.values())
         self._imu_drift = self.options.imu_drift_config()
         self.s.imu_drift = imu_model.initial_state(self._imu_drift)
         self._battery = self.options.battery_config()
         self.s.battery_soc = self._battery.initial_soc
-        self.s.wheel_prev = tuple(self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_prev = tuple(self.body.joint_states(self._wheels)[0])
         self.s.wheel_true_prev = self.s.wheel_measured = self.s.wheel_prev
         self.s.wheel_prev = tuple(quantise(a, self.options.wheel_encoder_counts) for a in self.s.wheel_prev)
         self.wheel_noise = self.options.wheel_noise
         self.wheel_rng = np.random.default_rng([self.options.seed, 1])   # own stream: other noise unchanged
-        self._initial = self.bullet.save_state()
+        self._initial = None if self.shared else self.bullet.save_state()
         self.firmware: FirmwareDrive | None = None
         if self.drive == "firmware":
             try:
@@ -351,7 +364,7 @@ class Simulator:
                 self.firmware = FirmwareDrive(self.options.pty_link, self.motor, self.s.wheel_prev,
                                               self._start_volts(), faults=self.options.faults())
             except Exception:
-                self.bullet.close()
+                self._close_world()
                 raise
 
     # ------------------------------------------------------------ control
@@ -385,7 +398,7 @@ class Simulator:
 
     def _firmware_motors(self) -> None:
         cmds = self.firmware.motor_commands(self.s.wheel_speed)
-        self.bullet.set_joint_velocities(self._wheels, [c[0] for c in cmds], [c[1] for c in cmds])
+        self.body.set_joint_velocities(self._wheels, [c[0] for c in cmds], [c[1] for c in cmds])
 
     def _start_volts(self) -> float:
         if not self.options.battery_model:
@@ -416,62 +429,72 @@ class Simulator:
         r = d.wheel_radius
         target = ((v - w * d.wheel_separation / 2.0) / r, (v + w * d.wheel_separation / 2.0) / r)
         if target != self.s.wheel_target:
-            self.bullet.set_joint_velocities(self._wheels, target, d.torque)
+            self.body.set_joint_velocities(self._wheels, target, d.torque)
             self.s.wheel_target = target
 
     # ------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> list[Event]:
-        """Advance ``n`` physics steps; return the readings that fell due."""
+        """Advance ``n`` physics steps; return the readings that fell due.  (A robot in a shared
+        world is stepped by its :class:`chefbot_sim.fleet.Fleet`.)"""
+        if self.shared:
+            raise RuntimeError("step: this robot lives in a shared world; step the Fleet")
         events: list[Event] = []
+        for _ in range(n):
+            self.before_physics()
+            self.bullet.step()
+            self.after_physics(events)
+        return events
+
+    def before_physics(self) -> None:
+        """Apply the drive's wheel commands for the coming physics step."""
+        if self.firmware is None:
+            self._drive()
+        else:
+            self._firmware_motors()
+
+    def after_physics(self, events: list[Event]) -> None:
+        """Count the physics step just taken; append the readings that fell due to ``events``."""
         dt = self.options.time_step
         fw = self.firmware
-        next_due = min(self.s.due.values())
-        for _ in range(n):
-            if fw is None:
-                self._drive()
-            else:
-                self._firmware_motors()
-            self.bullet.step()
-            self.s.steps += 1
-            self.s.time = self.s.steps * dt
-            if fw is not None:
-                ang, vel = self.bullet.joint_states(self._wheels)
-                self.s.wheel_speed = (float(vel[0]), float(vel[1]))
-                fw.after_physics(self._measure_wheels(ang), self.s.time)
-                if self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
-                    self._discharge(BATTERY_STEPS * dt)
-            if self.s.time + 1e-9 < next_due:
-                continue  # most steps: no reading due
-            for kind in SENSORS:
-                rate = self.rates[kind]
-                if rate <= 0 or self.s.time + 1e-9 < self.s.due[kind]:
-                    continue
-                # stay on the rate's grid; only re-anchor if we fell behind
-                self.s.due[kind] += 1.0 / rate
-                if self.s.due[kind] <= self.s.time + 1e-9:
-                    self.s.due[kind] = self.s.time + 1.0 / rate
-                if kind == "odom":  # integrate odometry even when nobody listens
-                    data = self._odom()
-                    if self.enabled[kind]:
-                        events.append(Event(kind, self.s.time, data))
-                    continue
-                if kind == "imu":
-                    data = self._imu()
-                    if fw is not None:
-                        fw.set_imu(data["orientation"])
-                    if self.enabled[kind]:
-                        events.append(Event(kind, self.s.time, data))
-                    continue
-                if kind == "ultrasonic" and fw is not None:  # the board's HC-SR04 always measures
-                    data = self._sonar()
-                    fw.set_ultrasonic(data["range"])
-                    if self.enabled[kind]:
-                        events.append(Event(kind, self.s.time, data))
-                    continue
+        self.s.steps += 1
+        self.s.time = self.s.steps * dt
+        if fw is not None:
+            ang, vel = self.body.joint_states(self._wheels)
+            self.s.wheel_speed = (float(vel[0]), float(vel[1]))
+            fw.after_physics(self._measure_wheels(ang), self.s.time)
+            if self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
+                self._discharge(BATTERY_STEPS * dt)
+        if self.s.time + 1e-9 < self._next_due:
+            return  # most steps: no reading due
+        for kind in SENSORS:
+            rate = self.rates[kind]
+            if rate <= 0 or self.s.time + 1e-9 < self.s.due[kind]:
+                continue
+            # stay on the rate's grid; only re-anchor if we fell behind
+            self.s.due[kind] += 1.0 / rate
+            if self.s.due[kind] <= self.s.time + 1e-9:
+                self.s.due[kind] = self.s.time + 1.0 / rate
+            if kind == "odom":  # integrate odometry even when nobody listens
+                data = self._odom()
                 if self.enabled[kind]:
-                    events.append(Event(kind, self.s.time, self._read(kind)))
-            next_due = min(self.s.due.values())
-        return events
+                    events.append(Event(kind, self.s.time, data))
+                continue
+            if kind == "imu":
+                data = self._imu()
+                if fw is not None:
+                    fw.set_imu(data["orientation"])
+                if self.enabled[kind]:
+                    events.append(Event(kind, self.s.time, data))
+                continue
+            if kind == "ultrasonic" and fw is not None:  # the board's HC-SR04 always measures
+                data = self._sonar()
+                fw.set_ultrasonic(data["range"])
+                if self.enabled[kind]:
+                    events.append(Event(kind, self.s.time, data))
+                continue
+            if self.enabled[kind]:
+                events.append(Event(kind, self.s.time, self._read(kind)))
+        self._next_due = min(self.s.due.values())
 
     def run(self, duration: float, on_event: Callable[[Event], None] | None = None) -> None:
         """Advance by ``duration`` s of sim time, passing each reading to ``on_event``."""
@@ -485,7 +508,7 @@ class Simulator:
         if kind == "clock":
             return self.s.time
         if kind == "joint_states":
-            pos, vel = self.bullet.joint_states(self._joint_idx)
+            pos, vel = self.body.joint_states(self._joint_idx)
             return {"name": self.joint_names, "position": pos, "velocity": vel}
         if kind == "ground_truth":
             return self.ground_truth()
@@ -500,7 +523,7 @@ class Simulator:
         if kind == "lidar":
             return self.lidar_scan()
         if kind == "bumper":
-            contacts = self.bullet.robot_contacts()
+            contacts = self.body.contacts()
             return {"pressed": bool(contacts),
                     "bodies": sorted({self.bullet.body_name(c[1]) for c in contacts})}
         raise KeyError(kind)
@@ -508,7 +531,7 @@ class Simulator:
     # ------------------------------------------------------------ readings
     def ground_truth(self) -> GroundTruthData:
         """base_footprint pose in the world frame and its twist in the base frame."""
-        pos, quat, lin, ang = self.bullet.base_state()
+        pos, quat, lin, ang = self.body.base_state()
         rot = quat_to_matrix(quat)
         return {"position": pos, "orientation": quat, "linear": rot.T @ lin, "angular": rot.T @ ang,
                 "x": float(pos[0]), "y": float(pos[1]), "yaw": yaw_from_quaternion(*quat)}
@@ -527,7 +550,7 @@ class Simulator:
 
     def _odom(self) -> OdomData:
         d = self.params.drive
-        true_ang, vel = self.bullet.joint_states(self._wheels)
+        true_ang, vel = self.body.joint_states(self._wheels)
         counts = self.wheel_noise.encoder_counts
         ang = [quantise(a, counts) for a in self._measure_wheels(true_ang)]
         pl, pr = self.s.wheel_prev
@@ -542,7 +565,7 @@ class Simulator:
         w = (vel[1] - vel[0]) * d.wheel_radius / d.wheel_separation
         if self._odom_from_imu:
             # the IMU's heading (0 at the start pose, drifting with the gyro bias as of its last sample)
-            _, quat, _, ang = self.bullet.base_state()
+            _, quat, _, ang = self.body.base_state()
             bias, drift = self.s.imu_drift[0], self.s.imu_drift[1]
             dth = wrap_angle(yaw_from_quaternion(*quat) - self.start.yaw + drift - th)
             w = float(ang[2]) + bias
@@ -554,8 +577,8 @@ class Simulator:
 
     def _imu(self) -> ImuData:
         imu = self.params.imu
-        pos, rot = self.bullet.frame_pose(imu.frame)
-        _, _, lin, ang = self.bullet.base_state()
+        pos, rot = self.body.frame_pose(imu.frame)
+        _, _, lin, ang = self.body.base_state()
         prev = self.s.imu_prev_vel
         period = 1.0 / self.rates["imu"]
         acc_world = np.zeros(3) if prev is None else (lin - prev) / period
@@ -585,10 +608,12 @@ class Simulator:
     def _sonar(self) -> UltrasonicData:
         """Range (m) of the nearest echo in the cone; +inf without an echo (REP 117)."""
         us = self.params.ultrasonic
-        pos, rot = self.bullet.frame_pose(us.frame)
+        pos, rot = self.body.frame_pose(us.frame)
         # no floor echoes: the lower rays of the 15 degree cone would hit the
         # floor 0.8 m ahead, which the real HC-SR04 does not report
-        t = self._caster.cast(pos, self._sonar_dirs @ rot.T, us.max_range, floor=False)
+        dirs = self._sonar_dirs @ rot.T
+        t = np.minimum(self._caster.cast(pos, dirs, us.max_range, floor=False),
+                       self._robot_hits(pos, dirs, us.max_range))
         r = float(np.min(t))
         if math.isfinite(r):
             if us.noise_stddev > 0:
@@ -596,6 +621,25 @@ class Simulator:
             r = min(max(r, us.min_range), us.max_range)
         return {"range": r, "min_range": us.min_range, "max_range": us.max_range,
                 "field_of_view": us.field_of_view}
+
+    def _robot_hits(self, origin: np.ndarray, dirs: np.ndarray, max_t: float) -> np.ndarray:
+        """For the ray-cast sensors (depth camera, sonar: the analytic caster sees only the
+        static shapes): ``t`` of each ray ``origin + t·dir`` where it first hits another robot's
+        body, ``inf`` elsewhere.  Only robots whose centre is within reach are cast against
+        (pybullet rays, the robots' real collision shapes); alone in the world it costs nothing."""
+        others = [r for r in self.bullet.robots if r is not self.body]
+        if not others:
+            return np.full(len(dirs), np.inf)
+        reach = max_t * float(np.max(np.linalg.norm(dirs, axis=1))) + ROBOT_REACH
+        mask = 0
+        for r in others:
+            if np.linalg.norm(r.base_state()[0][:2] - origin[:2]) <= reach:
+                mask |= r.group_bit
+        if not mask:
+            return np.full(len(dirs), np.inf)
+        frac, _ = self.bullet.cast_rays(np.broadcast_to(origin, dirs.shape), origin + dirs * max_t, robots=mask,
+                                        world=False)
+        return np.where(frac < 1.0, frac * max_t, np.inf)
 
     def lidar_scan(self) -> LidarData:
         """One scan of the lidar: a ray per beam in the laser frame's x-y plane, one ``rayTestBatch``
@@ -606,9 +650,9 @@ class Simulator:
         The whole scan is taken at one instant (the sim time of the event): the sweep of a real
         spinning unit during its 0.1 s turn is not modelled, so ``time_increment`` is 0."""
         lid = self.lidar
-        pos, rot = self.bullet.frame_pose(lid.frame)
+        pos, rot = self.body.frame_pose(lid.frame)
         dirs = self._lidar_dirs @ rot.T
-        frac, _ = self.bullet.cast_rays(np.broadcast_to(pos, dirs.shape), pos + dirs * lid.range_max, floor=True)
+        frac, _ = self.body.cast_rays(np.broadcast_to(pos, dirs.shape), pos + dirs * lid.range_max, floor=True)
         dist = np.where(frac < 1.0, frac * lid.range_max, np.inf)
         return {"ranges": lid.ranges(dist, self.rng), "angle_min": lid.angle_min,
                 "angle_increment": lid.angle_increment, "angle_max": lid.angle_max,
@@ -621,11 +665,11 @@ class Simulator:
         cliffs = self.params.cliffs
         self.cliff_frames = []   # what each Range is stamped with: the sensor's URDF frame
         for c in cliffs:
-            self.bullet.frame(c.parent)
+            self.body.frame(c.parent)
             # the sensor's frame carries its parent's tf prefix (xacro frame_prefix, e.g. 'chefbot1/')
             frame = c.parent[:c.parent.rfind("/") + 1] + f"{c.name}_link"
             try:
-                self.bullet.frame(frame)
+                self.body.frame(frame)
                 self.cliff_frames.append(frame)
             except BulletError:   # a model without the frames (older URDF): the sensor's name
                 self.cliff_frames.append(c.name)
@@ -646,12 +690,12 @@ class Simulator:
         the floor is away and 13 mm at max range, well under the robot's stopping
         distance, so a cone of rays would cost more and change nothing that matters.
         """
-        frames = [self.bullet.frame_pose(name) for name in self._cliff_parents]
+        frames = [self.body.frame_pose(name) for name in self._cliff_parents]
         pos = np.array([f[0] for f in frames])[self._cliff_parent_idx]
         rot = np.array([f[1] for f in frames])[self._cliff_parent_idx]
         origins = pos + np.einsum("nij,nj->ni", rot, self._cliff_origin)
         dirs = np.einsum("nij,nj->ni", rot, self._cliff_dir)
-        frac, _ = self.bullet.cast_rays(origins, origins + dirs * self._cliff_max[:, None], floor=True)
+        frac, _ = self.body.cast_rays(origins, origins + dirs * self._cliff_max[:, None], floor=True)
         ranges = np.where(frac < 1.0, frac * self._cliff_max, np.inf)
         ranges[ranges < self._cliff_min] = -np.inf
         return {"names": [c.name for c in self.params.cliffs], "frames": self.cliff_frames, "range": ranges,
@@ -692,7 +736,7 @@ class Simulator:
         nearest coarse sample; with none they are NaN; with full every pixel is exact.
         """
         cam, p = self.depth_camera, self.params.depth_camera
-        pos, rot = self.bullet.frame_pose(p.depth_frame)
+        pos, rot = self.body.frame_pose(p.depth_frame)
         if self.dense_depth:
             # every pixel rendered (for the point clouds), but the scan band stays the exact
             # per-pixel ray cast, so depth_to_scan sees the same ranges either way (the
@@ -702,7 +746,8 @@ class Simulator:
         else:
             img = np.full((cam.height, cam.width), np.nan, dtype=np.float32)
             dirs = self._dirs_all
-        t_all = self._caster.cast(pos, dirs @ rot.T, p.max_range)
+        dirs_w = dirs @ rot.T
+        t_all = np.minimum(self._caster.cast(pos, dirs_w, p.max_range), self._robot_hits(pos, dirs_w, p.max_range))
         n_exact = len(self._dirs_exact)
         t = t_all[:n_exact]
         img[self._depth_rows[0]:self._depth_rows[-1] + 1, :] = t.reshape(len(self._depth_rows), cam.width)
@@ -737,19 +782,22 @@ class Simulator:
     def _rebuild_caster(self) -> None:
         self._caster = RayCaster(self.world.shapes + self._spawned)
 
-    def spawn(self, shape: Shape) -> None:
-        """Add a static obstacle (its name must be new)."""
+    def spawn(self, shape: Shape, add_body: bool = True) -> None:
+        """Add a static obstacle (its name must be new).  In a shared world the Fleet adds the
+        body once (``add_body``) and tells every robot's ray caster."""
         if any(s.name == shape.name for s in self.world.shapes + self._spawned):
             raise ValueError(f"an object named '{shape.name}' exists already")
-        self.bullet.add_shape(shape)
+        if add_body:
+            self.bullet.add_shape(shape)
         self._spawned.append(shape)
         self._rebuild_caster()
 
-    def remove(self, name: str) -> None:
-        """Remove a spawned obstacle."""
+    def remove(self, name: str, remove_body: bool = True) -> None:
+        """Remove a spawned obstacle (``remove_body``: as in :meth:`spawn`)."""
         for s in self._spawned:
             if s.name == name:
-                self.bullet.remove_shape(name)
+                if remove_body:
+                    self.bullet.remove_shape(name)
                 self._spawned.remove(s)
                 self._rebuild_caster()
                 return
@@ -762,7 +810,7 @@ class Simulator:
 
     def _resync_wheels(self) -> None:
         """Wheel angles changed outside physics: no odometry, no encoder edges for that."""
-        self.s.wheel_true_prev = tuple(float(a) for a in self.bullet.joint_states(self._wheels)[0])
+        self.s.wheel_true_prev = tuple(float(a) for a in self.body.joint_states(self._wheels)[0])
         counts = self.wheel_noise.encoder_counts
         self.s.wheel_prev = tuple(quantise(a, counts) for a in self.s.wheel_measured)
         self.s.wheel_speed = (0.0, 0.0)
@@ -772,7 +820,7 @@ class Simulator:
     def teleport(self, pose: Pose2D) -> None:
         """Put the robot at ``pose`` at rest, on the surface there (floor or platform top);
         odometry (and in firmware mode the encoder counts) keeps counting from where it was."""
-        self.bullet.teleport(pose, z=surface_height(self.world.shapes + self._spawned, pose.x, pose.y))
+        self.body.teleport(pose, z=surface_height(self.world.shapes + self._spawned, pose.x, pose.y))
         self._resync_wheels()
         self.s.imu_prev_vel = None
         self.s.cmd_time = -math.inf
@@ -780,10 +828,14 @@ class Simulator:
     def reset(self) -> None:
         """Robot back to the start pose at rest, spawned obstacles removed,
         odometry zeroed.  Sim time keeps running forward (like Gazebo's
-        reset_world), so ROS clients never see time jump back."""
-        for name in list(self.spawned):
-            self.remove(name)
-        self.bullet.restore_state(self._initial)
+        reset_world), so ROS clients never see time jump back.  In a shared world only
+        this robot goes back (the Fleet removes the obstacles)."""
+        if self.shared:
+            self.body.teleport(self.start, z=self.world.surface_height(self.start.x, self.start.y))
+        else:
+            for name in list(self.spawned):
+                self.remove(name)
+            self.bullet.restore_state(self._initial)
         self.s.wheel_target = (math.nan, math.nan)  # force re-applying the motors
         self.s.cmd = (0.0, 0.0)
         self.s.cmd_time = -math.inf
@@ -801,6 +853,8 @@ class Simulator:
         cannot be saved)."""
         if self.firmware is not None:
             raise RuntimeError("snapshot: not available in firmware mode (the firmware core has no snapshots)")
+        if self.shared:
+            raise RuntimeError("snapshot: not available for a robot in a shared world")
         st = _State(**{k: getattr(self.s, k) for k in self.s.__dataclass_fields__})
         st.due = dict(self.s.due)
         st.rng_state = self.rng.bit_generator.state
@@ -815,10 +869,11 @@ class Simulator:
         self.bullet.restore_state(state_id)
         self.s = _State(**{k: getattr(st, k) for k in st.__dataclass_fields__})
         self.s.due = dict(st.due)
+        self._next_due = min(self.s.due.values())
         self.rng.bit_generator.state = st.rng_state
         self.wheel_rng.bit_generator.state = st.wheel_rng_state
         target = self.s.wheel_target
-        self.bullet.set_joint_velocities(self._wheels, target, self.params.drive.torque)
+        self.body.set_joint_velocities(self._wheels, target, self.params.drive.torque)
 
     @property
     def pty_path(self) -> str | None:
@@ -830,7 +885,11 @@ class Simulator:
         if self.firmware is not None:
             self.firmware.close()
             self.firmware = None
-        self.bullet.close()
+        self._close_world()
+
+    def _close_world(self) -> None:
+        if not self.shared:
+            self.bullet.close()
 
 
 class Pacer:
