@@ -32,7 +32,7 @@ def _number(v: Any, where: str) -> float:
     return float(v)
 
 
-def _pose(p: Any, where: str) -> Pose2D:
+def parse_pose(p: Any, where: str) -> Pose2D:
     """A ``{x, y, yaw}`` mapping as a Pose2D (yaw default 0), or :class:`TablesError` naming ``where``."""
     if not isinstance(p, dict):
         raise TablesError(f"{where}: expected a mapping {{x, y, yaw}}, got {p!r}")
@@ -55,7 +55,7 @@ def load_map_in_world(path: str | Path) -> Pose2D:
     absent.  Product nodes do not read it.  Raises :class:`TablesError`.
     """
     data, _ = _read(Path(path))   # validates the whole file
-    return _pose(data["map_in_world"], f"{path}: map_in_world") if "map_in_world" in data else Pose2D()
+    return parse_pose(data["map_in_world"], f"{path}: map_in_world") if "map_in_world" in data else Pose2D()
 
 
 def format_tables(poses: dict[str, Pose2D], header: str, world: str | None = None,
@@ -112,8 +112,8 @@ def _read(path: Path) -> tuple[dict, dict[str, Pose2D]]:
     if frame != "map":
         raise TablesError(f"{path}: frame must be 'map', got {frame!r}")
     if "map_in_world" in data:
-        _pose(data["map_in_world"], f"{path}: map_in_world")
-    out = {str(name): _pose(p, f"{path}: poses.{name}") for name, p in data["poses"].items()}
+        parse_pose(data["map_in_world"], f"{path}: map_in_world")
+    out = {str(name): parse_pose(p, f"{path}: poses.{name}") for name, p in data["poses"].items()}
     if "home" not in out:
         raise TablesError(f"{path}: missing the 'home' pose")
     if "destinations" in data:
