@@ -23,6 +23,7 @@ PACKAGES = {
     "chefbot_sim": "chefbot_sim",
     "chefbot_gui": "chefbot_gui",
     "chefbot_vision": "chefbot_vision",
+    "chefbot_fleet": "chefbot_fleet",
     "tests": "chefbot_tests",
 }
 

@@ -271,34 +271,44 @@ class BulletSim:
 
     # the one-robot API: the first robot loaded (RobotBody has the documentation)
     def frame(self, name: str) -> tuple[int, np.ndarray]:
+        """The first robot's :meth:`RobotBody.frame`."""
         return self._primary().frame(name)
 
     def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """The first robot's :meth:`RobotBody.frame_pose`."""
         return self._primary().frame_pose(name)
 
     def joint(self, name: str) -> int:
+        """The first robot's :meth:`RobotBody.joint`."""
         return self._primary().joint(name)
 
     def movable_joints(self) -> dict[str, int]:
+        """The first robot's :meth:`RobotBody.movable_joints`."""
         return self._primary().movable_joints()
 
     def set_joint_velocities(self, joints: Sequence[int], velocities: Sequence[float],
                              max_torque: float | Sequence[float]) -> None:
+        """The first robot's :meth:`RobotBody.set_joint_velocities`."""
         self._primary().set_joint_velocities(joints, velocities, max_torque)
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The first robot's :meth:`RobotBody.joint_states`."""
         return self._primary().joint_states(joints)
 
     def base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The first robot's :meth:`RobotBody.base_state`."""
         return self._primary().base_state()
 
     def link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
+        """The first robot's :meth:`RobotBody.link_pose`."""
         return self._primary().link_pose(link)
 
     def teleport(self, pose: Pose2D, z: float = 0.0) -> None:
+        """The first robot's :meth:`RobotBody.teleport`."""
         self._primary().teleport(pose, z)
 
     def robot_contacts(self) -> list[tuple[str, int, np.ndarray]]:
+        """The first robot's :meth:`RobotBody.contacts`."""
         return self._primary().contacts()
 
     # ------------------------------------------------------------ stepping, state

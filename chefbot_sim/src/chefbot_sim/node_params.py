@@ -34,10 +34,21 @@ class SimNodeParams:
     publish_tf: bool = True           # odom -> base tf (plugin drive only)
     world_frame: str = "map"          # frame of ground_truth/odom
     gui: bool = False                 # pybullet's own window
+    fleet_file: str = ""              # several robots in this world: the site's fleet file (chefbot_common.fleet_file;
+                                      # '' = one robot, as above); then x, y, yaw and robot_description are
+                                      # unused: each robot starts at its fleet-file start pose, with the model
+                                      # <name>/robot_description, and its topics are under /<name>
+    robots: int = 1                   # with fleet_file: how many of its robots (its first N; >= 1)
+    cmd_vel_topic: str = "cmd_vel"    # with fleet_file: each robot's velocity command topic, relative to its
+                                      # namespace (cmd_vel_guarded behind chefbot_bringup's cliff guard)
 
     def __post_init__(self) -> None:
-        if not self.robot_description:
+        if not self.fleet_file and not self.robot_description:
             raise ValueError("robot_description is not set (include chefbot_description's robot_state.launch.xml)")
+        if self.robots < 1:
+            raise ValueError(f"robots must be >= 1, got {self.robots}")
+        if not self.cmd_vel_topic or self.cmd_vel_topic.startswith("/"):
+            raise ValueError(f"cmd_vel_topic must be a relative topic name, got {self.cmd_vel_topic!r}")
         if not self.world:
             raise ValueError("world (path of a world file) is not set")
         if not all(math.isfinite(v) for v in (self.x, self.y, self.yaw)):
@@ -111,3 +122,42 @@ def pacing(firmware: bool, rtf: float) -> tuple[int, float | None]:
     if firmware:
         return (FIRMWARE_STEPS_PER_BATCH if rtf > 0 else STEPS_PER_BATCH), FIRMWARE_MAX_LAG
     return STEPS_PER_BATCH, None
+
+
+@dataclass(frozen=True)
+class FleetMember:
+    """One robot of a simulated fleet: its name (namespace), model and start pose (world frame)."""
+
+    name: str
+    robot_description: str = field(repr=False)
+    start: tuple[float, float, float]
+
+
+def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[FleetMember]:
+    """The robots of ``~fleet_file`` the sim holds (its first ``~robots``), each with its model from
+    ``<name>/robot_description``.  ParamError (a ValueError) names a missing model or a bad file."""
+    from chefbot_common.fleet_file import FleetFileError, load_fleet, select
+
+    try:
+        robots = select(load_fleet(node.fleet_file), node.robots, node.fleet_file)
+    except FleetFileError as e:
+        raise ParamError(f"parameter ~fleet_file: {e}") from None
+    out = []
+    for r in robots:
+        urdf = get(f"{r.name}/robot_description", "")
+        if not urdf:
+            raise ParamError(f"{r.name}/robot_description is not set: start the robot's model in namespace "
+                             f"{r.name} (chefbot_description's robot_state.launch.xml with frame_prefix "
+                             f"'{r.name}/')")
+        out.append(FleetMember(r.name, urdf, (r.start.x, r.start.y, r.start.yaw)))
+    return out
+
+
+def member_options(opts: SimOptions, index: int, name: str) -> SimOptions:
+    """Robot ``index`` (named ``name``) of a fleet gets the sim's options with its own noise seed
+    (seed + index), its own LaunchPad pty link (pty_link + '_' + name) and its lidar frame under
+    its tf prefix ('<name>/laser' unless lidar_frame names a prefix already)."""
+    from dataclasses import replace
+    lidar_frame = opts.lidar_frame if "/" in opts.lidar_frame else f"{name}/{opts.lidar_frame}"
+    return replace(opts, seed=opts.seed + index, pty_link=f"{opts.pty_link}_{name}" if opts.pty_link else "",
+                   lidar_frame=lidar_frame)

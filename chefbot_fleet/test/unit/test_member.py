@@ -1,0 +1,40 @@
+"""chefbot_fleet.member: which robot a fleet_member is, its fleet-file entry, its initial pose."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from chefbot_common.fleet_file import FleetFileError
+from chefbot_common.geometry import Pose2D
+from chefbot_fleet.member import COV_X, COV_Y, COV_YAW, find_robot, initial_covariance, robot_name
+
+HOTEL = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_fleet.yaml"
+
+
+@pytest.mark.parametrize("param, ns, name", [("", "/chefbot2/", "chefbot2"), ("tray", "/chefbot2/", "tray"),
+                                             ("", "chefbot3", "chefbot3")])
+def test_the_robot_is_the_parameter_else_the_namespace(param: str, ns: str, name: str) -> None:
+    assert robot_name(param, ns) == name
+
+
+@pytest.mark.parametrize("ns", ["/", "/site/chefbot1/"])
+def test_a_node_outside_one_robot_namespace_must_be_told(ns: str) -> None:
+    with pytest.raises(FleetFileError, match="set ~robot"):
+        robot_name("", ns)
+
+
+def test_find_the_entry_or_name_the_robots() -> None:
+    r = find_robot(str(HOTEL), "chefbot2")
+    assert r.start == r.parking == Pose2D(0.0, -1.5, 0.0)
+    with pytest.raises(FleetFileError, match="no robot 'chefbot7' .robots: chefbot1, chefbot2, chefbot3"):
+        find_robot(str(HOTEL), "chefbot7")
+
+
+def test_initial_covariance_is_diagonal_in_x_y_yaw() -> None:
+    cov = initial_covariance(0.04, 0.01)
+    assert len(cov) == 36
+    assert (cov[COV_X], cov[COV_Y], cov[COV_YAW]) == (0.04, 0.04, 0.01)
+    assert sum(1 for v in cov if v) == 3
+    with pytest.raises(ValueError, match="> 0"):
+        initial_covariance(0.0, 0.01)
