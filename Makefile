@@ -9,6 +9,7 @@ help:
 	@echo "make demo   - install what is missing, build, run the simulated delivery demo (headless without a display)"
 	@echo "              another site: make demo WORLD=chefbot_sim/worlds/cafe.yaml MAP=chefbot_navigation/maps/cafe_map.yaml TABLES_FILE=chefbot_navigation/maps/cafe_tables.yaml"
 	@echo "make demo SLAM=1 - book ch. 4 in one go: explore + map with our SLAM, save the map, localize on it (amcl), deliver"
+	@echo "make demo ROBOTS=3 - three robots in one simulated hotel deliver at once (FLEET_FILE= for another site)"
 	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
 	@echo "make bench  - benchmarks: figures side by side, JSON in bench-results/, report docs/benchmarks.md"
 	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
@@ -22,6 +23,7 @@ test: setup
 	@$(WITH_ENV) python tools/run_tests.py
 
 # make demo [WORLD=file.yaml|.world] [MAP=map.yaml] [TABLES_FILE=tables.yaml] [DRIVE=firmware|plugin] [GUI=0|1] [SLAM=1]
+# ROBOTS=N (N >= 2): several robots in one world deliver at once [FLEET_FILE=site_fleet.yaml] (tools/fleet_demo.py)
 # SLAM=1: map the world first (SLAM + explore), save, localize on the saved map, deliver; MAP= is then the
 # world's raster, for judging the new map only
 # (or CHEFBOT_DEMO_* variables)
@@ -29,6 +31,7 @@ demo: setup
 	@$(if $(WORLD),CHEFBOT_DEMO_WORLD='$(WORLD)') $(if $(MAP),CHEFBOT_DEMO_MAP='$(MAP)') $(if $(DRIVE),CHEFBOT_DEMO_DRIVE='$(DRIVE)') \
 	  $(if $(GUI),CHEFBOT_DEMO_GUI='$(GUI)') \
 	  $(if $(SLAM),CHEFBOT_DEMO_SLAM='$(SLAM)') \
+	  $(if $(ROBOTS),CHEFBOT_DEMO_ROBOTS='$(ROBOTS)') $(if $(FLEET_FILE),CHEFBOT_DEMO_FLEET_FILE='$(FLEET_FILE)') \
 	  $(if $(TABLES_FILE),CHEFBOT_DEMO_TABLES_FILE='$(TABLES_FILE)') $(WITH_ENV) python tools/demo.py
 
 bench: setup

@@ -123,11 +123,15 @@ class DeliveryClient:
     Goals are in the ``map`` frame, ground truth in the simulator's world frame;
     ``map_in_world`` (the map frame's pose in the world, m/rad; identity for the
     world raster, from the tables file's ``map_in_world`` for a SLAM map) carries
-    goals into the world for the final-error check: a test oracle.
+    goals into the world for the final-error check: a test oracle.  ``ns`` names a robot of a
+    fleet (``chefbot2``: its topics under ``/chefbot2``, its frames prefixed ``chefbot2/``).
     """
 
-    def __init__(self, map_in_world: Pose2D | None = None) -> None:
+    def __init__(self, map_in_world: Pose2D | None = None, ns: str = "") -> None:
         self.map_in_world = map_in_world or Pose2D()
+        ns = ns.strip("/")
+        self.pre = f"/{ns}/" if ns else ""
+        self.base_frame = f"{ns}/base_footprint" if ns else "base_footprint"
         self._lock = threading.Lock()
         self.truth: Odometry | None = None
         self.bumps = 0
@@ -135,9 +139,9 @@ class DeliveryClient:
         self._history = TruthHistory()
         self._samples: list[tuple[float, tuple[float, float, float], tuple[float, float, float] | None]] = []
         self._legs: list[dict] = []
-        rospy.Subscriber("ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
-        rospy.Subscriber("bumper", Bool, self._on_bumper, queue_size=10)
-        self.client = GoalClient("move_base", MoveBaseAction)
+        rospy.Subscriber(self.pre + "ground_truth/odom", Odometry, self._on_truth, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber(self.pre + "bumper", Bool, self._on_bumper, queue_size=10)
+        self.client = GoalClient(self.pre + "move_base", MoveBaseAction)
         self.tf_buffer = tf2_ros.Buffer()
         self._tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self._timer = rospy.Timer(rospy.Duration(SAMPLE_PERIOD_S), self._sample)
@@ -148,7 +152,7 @@ class DeliveryClient:
 
     def _estimate_stamped(self) -> tuple[float, Pose2D] | None:
         """The localization's latest map->base_footprint with its stamp (sim s), or None when tf has none."""
-        return latest_pose(self.tf_buffer)
+        return latest_pose(self.tf_buffer, child=self.base_frame)
 
     def estimate(self) -> Pose2D | None:
         """The localization's latest map->base_footprint, or None when tf has none."""
@@ -223,8 +227,8 @@ class DeliveryClient:
             time.sleep(0.05)
         if not wait_for_action_server(self.client, max(0.0, deadline - time.monotonic())):   # wall clock
             raise TimeoutError("move_base action server not up")
-        rospy.wait_for_service("move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
-        self.make_plan = rospy.ServiceProxy("move_base/make_plan", GetPlan)
+        rospy.wait_for_service(self.pre + "move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
+        self.make_plan = rospy.ServiceProxy(self.pre + "move_base/make_plan", GetPlan)
 
     def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
         """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
@@ -304,8 +308,8 @@ class DeliveryClient:
         ``move_base/goal``, then for that goal's result; the same figures as :meth:`deliver`."""
         if not self._observing:
             self._observing = True
-            rospy.Subscriber("move_base/goal", MoveBaseActionGoal, self._on_goal, queue_size=10)
-            rospy.Subscriber("move_base/result", MoveBaseActionResult, self._on_result, queue_size=10)
+            rospy.Subscriber(self.pre + "move_base/goal", MoveBaseActionGoal, self._on_goal, queue_size=10)
+            rospy.Subscriber(self.pre + "move_base/result", MoveBaseActionResult, self._on_result, queue_size=10)
         deadline = time.monotonic() + timeout_wall
         goal = None
         while goal is None and time.monotonic() < deadline and not rospy.is_shutdown():

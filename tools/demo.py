@@ -29,7 +29,8 @@ that world), CHEFBOT_DEMO_TABLES_FILE (tables YAML; the robot starts at its ``ho
 default, or plugin: the sim applies cmd_vel and publishes wheel odometry itself; `make demo
 DRIVE=plugin`), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the IMU -- diff_tf's
 use_imu in the firmware drive, the sim's odom_imu_heading in the plugin drive; 0: wheel-only
-heading); CHEFBOT_DEMO_SLAM=1 (`make demo SLAM=1`): first map the world with our SLAM, save the map,
+heading); CHEFBOT_DEMO_ROBOTS=N (`make demo ROBOTS=3`, N >= 2): several robots deliver in one world
+(tools/fleet_demo.py); CHEFBOT_DEMO_SLAM=1 (`make demo SLAM=1`): first map the world with our SLAM, save the map,
 localize on it and deliver there (tools/slam_demo.py).  Every pose of the tables file but ``home``
 is a delivery target, whatever its name (or the file's ``destinations`` list); a file with none is
 an error naming it.
@@ -146,6 +147,9 @@ def table_names(tables: dict, tables_file: str | Path) -> list[str]:
 
 
 def main() -> int:
+    if os.environ.get("CHEFBOT_DEMO_ROBOTS", "1").strip() not in ("", "1"):
+        from fleet_demo import main as fleet_main  # `make demo ROBOTS=3`: several robots in one world
+        return fleet_main()
     if os.environ.get("CHEFBOT_DEMO_SLAM", "") not in ("", "0", "false"):
         from slam_demo import run  # `make demo SLAM=1`: map -> save -> localize -> deliver
         return run()

@@ -1,0 +1,166 @@
+"""Single-lane zones of a site map: the aisles two robots cannot pass each other in (pure numpy/scipy).
+
+An aisle's width at a point of its centre line is twice the distance from there to the nearest
+obstacle.  The centre lines are the free space's medial axis (scikit-image); the distance is
+scipy's Euclidean distance transform.  A centre-line cell is *single-lane* where a robot fits
+(width >= its diameter) but two do not (width < ``two_lane_width``).  Each connected run of
+single-lane centre-line cells is one zone; the zone's area is every free cell whose nearest
+centre-line cell belongs to that run (the aisle's cross-section).  Where a zone's centre line
+meets a wider one is a *mouth*; the zone's *holding point* for that mouth lies on the wide centre
+line, far enough out that a robot waiting there keeps its whole body outside the zone.
+
+Units: metres; cells are (row, col) of the map (row 0 at the origin's y, as map_server's data).
+Unknown cells count as obstacles.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+from skimage.morphology import medial_axis
+
+from chefbot_common.grid import OccupancyMap
+
+FREE_MAX = 25          # occupancy values up to this are free space (map_server's free_thresh 0.196 -> 19.6 %)
+EIGHT = np.ones((3, 3), bool)
+
+
+@dataclass(frozen=True)
+class ZoneConfig:
+    """What makes an aisle single-lane, and where robots wait outside one."""
+
+    robot_radius: float = 0.178        # [m] the robot's circumscribed radius (ChefBot's base: 0.178 m)
+    passing_margin: float = 0.15       # [m] free width two robots need besides their two bodies to pass
+    hold_clearance: float = 0.10       # [m] gap between a waiting robot's body and a robot that has just
+                                       # left the zone (its body 2 radii out of the zone's area)
+    min_length: float = 0.5            # [m] shorter single-lane runs are ignored: the tip of the centre line
+                                       # running into a room corner narrows through the band over ~0.36 m
+
+    def __post_init__(self) -> None:
+        if not self.robot_radius > 0:
+            raise ValueError(f"robot_radius must be > 0 m, got {self.robot_radius}")
+        if self.passing_margin < 0 or self.hold_clearance < 0 or self.min_length < 0:
+            raise ValueError("passing_margin, hold_clearance and min_length must be >= 0 m")
+
+    @property
+    def hold_distance(self) -> float:
+        """[m] from the zone's area to a waiting robot's centre: a robot coming out of the zone gets its
+        whole body out (two radii) before it must pass the waiting one, plus the clearance."""
+        return 3.0 * self.robot_radius + self.hold_clearance
+
+    @property
+    def two_lane_width(self) -> float:
+        """[m] the narrowest aisle two robots pass each other in: two diameters and the margin."""
+        return 4.0 * self.robot_radius + self.passing_margin
+
+
+@dataclass
+class Zone:
+    """One single-lane zone: its cells, narrowest and widest width (m), length along its centre line (m)
+    and holding points (world x, y; one per mouth, none for a zone that is a whole closed room)."""
+
+    id: int
+    cells: np.ndarray = field(repr=False)          # (N, 2) int (row, col) of the zone's area
+    min_width: float
+    max_width: float
+    length: float
+    holding_points: list[tuple[float, float]]
+
+
+@dataclass
+class ZoneMap:
+    """Every zone of a map and the label image (0 = no zone, k = zone k) to look points up in."""
+
+    info: object                                   # chefbot_common.grid.GridInfo of the map
+    labels: np.ndarray = field(repr=False)         # (H, W) int32
+    zones: list[Zone]
+
+    def zone_at(self, x: float, y: float) -> int:
+        """The zone id at world (x, y); 0 outside every zone (and outside the map)."""
+        row, col = self.info.world_to_cell(x, y)
+        if not (0 <= row < self.labels.shape[0] and 0 <= col < self.labels.shape[1]):
+            return 0
+        return int(self.labels[row, col])
+
+    def zones_along(self, xy: np.ndarray) -> list[int]:
+        """The zones a path (N, 2 world points) enters, in order, each once per entry."""
+        out: list[int] = []
+        prev = 0
+        for x, y in np.asarray(xy, float).reshape(-1, 2):
+            z = self.zone_at(float(x), float(y))
+            if z and z != prev:
+                out.append(z)
+            prev = z
+        return out
+
+
+def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
+    """The single-lane zones of ``grid`` (see the module docstring)."""
+    cfg = cfg or ZoneConfig()
+    info = grid.info
+    res = info.resolution
+    free = (grid.data >= 0) & (grid.data <= FREE_MAX)
+    skel, dist = medial_axis(free, return_distance=True)
+    # the width at a centre-line cell: twice the distance from its centre to the nearest obstacle cell's
+    # edge (the transform measures to that cell's centre: half a cell more)
+    width = 2.0 * np.maximum(dist - 0.5, 0.0) * res
+    fits = width >= 2.0 * cfg.robot_radius
+    narrow = skel & fits & (width < cfg.two_lane_width)
+    runs, n = ndimage.label(narrow, structure=EIGHT)
+    # every free cell belongs to its nearest centre-line cell
+    _, (near_r, near_c) = ndimage.distance_transform_edt(~skel, return_indices=True)
+    owner = np.where(free, runs[near_r, near_c], 0)
+    labels = np.zeros(grid.data.shape, np.int32)
+    zones: list[Zone] = []
+    wide = skel & fits & ~narrow
+    for k in range(1, n + 1):
+        line = runs == k
+        length = _line_length(line, res)
+        if length < cfg.min_length:
+            continue
+        zid = len(zones) + 1
+        area = owner == k
+        labels[area] = zid
+        w = width[line]
+        zones.append(Zone(zid, np.argwhere(area), float(w.min()), float(w.max()), length,
+                          _holding_points(line, area, wide, dist, info, cfg)))
+    return ZoneMap(info, labels, zones)
+
+
+def _line_length(line: np.ndarray, res: float) -> float:
+    """Length (m) of an 8-connected centre line: straight steps 1 cell, diagonal ones sqrt(2) (each
+    neighbouring pair once)."""
+    a = line.astype(np.int32)
+    straight = np.count_nonzero(a[1:, :] & a[:-1, :]) + np.count_nonzero(a[:, 1:] & a[:, :-1])
+    diagonal = np.count_nonzero(a[1:, 1:] & a[:-1, :-1]) + np.count_nonzero(a[1:, :-1] & a[:-1, 1:])
+    return float((straight + diagonal * np.sqrt(2.0)) * res) if a.sum() > 1 else float(res)
+
+
+def _holding_points(line: np.ndarray, area: np.ndarray, wide: np.ndarray, dist: np.ndarray, info,
+                    cfg: ZoneConfig) -> list[tuple[float, float]]:
+    """Per mouth (a run of wide centre line touching the zone's line), the wide centre-line cell nearest
+    the mouth at least ``cfg.hold_distance`` from the zone's area: there the line is wide enough for two
+    robots, so the one leaving the zone passes the waiting one."""
+    res = info.resolution
+    touching = ndimage.binary_dilation(line, structure=EIGHT) & wide
+    if not touching.any():
+        return []
+    # distance (m) from every cell to the zone's area
+    to_area = ndimage.distance_transform_edt(~area) * res
+    wide_runs, _ = ndimage.label(wide, structure=EIGHT)
+    need = cfg.hold_distance
+    points = []
+    for run in np.unique(wide_runs[touching]):
+        cand = (wide_runs == run) & (to_area >= need)
+        if not cand.any():
+            continue
+        # nearest such cell to the mouth, by geodesic distance along the wide line: approximated by the
+        # straight distance to the mouth cells (the line leaves the mouth without turning back)
+        mouth = np.argwhere(touching & (wide_runs == run))
+        rc = np.argwhere(cand)
+        d = np.min(np.hypot(rc[:, None, 0] - mouth[None, :, 0], rc[:, None, 1] - mouth[None, :, 1]), axis=1)
+        r, c = rc[int(np.argmin(d))]
+        x, y = info.cell_to_world(r, c)
+        points.append((float(x), float(y)))
+    return points
