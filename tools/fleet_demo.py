@@ -6,8 +6,8 @@ holding the site fleet file's first N robots, each with its own amcl and move_ba
 ``/chefbotK``), prints each robot's start, then drives every robot at once: the site's
 destinations are split into N runs of neighbouring tables (file order), each run given to the
 robot whose parking pose is nearest to it (a minimum-cost assignment), and each robot delivers its
-run and returns to its parking pose.  A leg move_base aborts (another robot in the way: nothing
-coordinates the robots yet) is sent again after 5 s, up to 3 times.  One line per leg, prefixed
+run and returns to its parking pose.  A leg move_base aborts (another robot in the way outside the
+single-lane zones, which nothing coordinates yet) is sent again after 5 s, up to 3 times.  One line per leg, prefixed
 with the robot's name (path length, time, final ground-truth error, bumper contacts), then
 ``delivered N/M tables with K robots in T s``.
 
@@ -22,8 +22,9 @@ CHEFBOT_DEMO_TABLES_FILE, CHEFBOT_DEMO_TABLES (a comma-separated subset), CHEFBO
 (plugin, the default here, or firmware), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the
 IMU, as in `make demo`; 0: the wheels'), CHEFBOT_DEMO_RTF (default 1.0).
 
-Nothing coordinates the robots yet beyond seeing each other (chefbot_fleet README): on a site
-whose aisles fit one robot, two robots meeting head-on can block each other and a leg can fail.
+chefbot_fleet's traffic node lets one robot at a time into each single-lane aisle; elsewhere the
+robots only see and avoid each other (chefbot_fleet README), so in tight two-lane space a leg can
+still abort and is retried.
 """
 from __future__ import annotations
 
@@ -150,7 +151,8 @@ def drive_robot(robot, run: list[str], tables: dict, results: dict, lock: thread
             leg = client.deliver(name, pose.x, pose.y, pose.yaw, LEG_TIMEOUT_S)
             if leg.state != "ABORTED" or attempt > RETRIES or rospy.is_shutdown():
                 break
-            # nothing coordinates the robots yet: the way may be blocked by another robot that moves on
+            # outside the single-lane zones nothing coordinates the robots: another one may block the
+            # way and move on
             say(f"[{robot.name}] {name}: {leg.text}; trying again in {RETRY_WAIT_S:g} s ({attempt}/{RETRIES})")
             rospy.sleep(RETRY_WAIT_S)
         leg.text += f" (attempt {attempt})" if attempt > 1 else ""

@@ -9,6 +9,11 @@ centre-line cell belongs to that run (the aisle's cross-section).  Where a zone'
 meets a wider one is a *mouth*; the zone's *holding point* for that mouth lies on the wide centre
 line, far enough out that a robot waiting there keeps its whole body outside the zone.
 
+Zones closer to each other than :attr:`ZoneConfig.merge_distance` are merged into one: a robot
+that stops to wait for the next zone, ``hold_distance`` (plus a braking margin) from it, must by then
+be clear of the zone it has just left (the reservation rule's "no hold and wait",
+:mod:`chefbot_fleet.reservations`).
+
 Units: metres; cells are (row, col) of the map (row 0 at the origin's y, as map_server's data).
 Unknown cells count as obstacles.
 """
@@ -34,6 +39,7 @@ class ZoneConfig:
     passing_margin: float = 0.15       # [m] free width two robots need besides their two bodies to pass
     hold_clearance: float = 0.10       # [m] gap between a waiting robot's body and a robot that has just
                                        # left the zone (its body 2 radii out of the zone's area)
+    hold_margin: float = 0.10          # [m] a waiting robot stops up to this much before hold_distance (braking)
     min_length: float = 0.5            # [m] shorter single-lane runs are ignored: the tip of the centre line
                                        # running into a room corner narrows through the band over ~0.36 m
 
@@ -50,6 +56,12 @@ class ZoneConfig:
         return 3.0 * self.robot_radius + self.hold_clearance
 
     @property
+    def merge_distance(self) -> float:
+        """[m] zones closer than this are one zone: a robot waiting hold_distance + hold_margin from one
+        is then always at least a robot radius clear of the other."""
+        return self.hold_distance + self.hold_margin + self.robot_radius
+
+    @property
     def two_lane_width(self) -> float:
         """[m] the narrowest aisle two robots pass each other in: two diameters and the margin."""
         return 4.0 * self.robot_radius + self.passing_margin
@@ -57,8 +69,9 @@ class ZoneConfig:
 
 @dataclass
 class Zone:
-    """One single-lane zone: its cells, narrowest and widest width (m), length along its centre line (m)
-    and holding points (world x, y; one per mouth, none for a zone that is a whole closed room)."""
+    """One single-lane zone: its cells, narrowest and widest width (m), length along its centre lines (m)
+    and holding points (world x, y; one per wider centre line it opens onto, none for a zone that is a
+    whole closed room).  A zone may be several aisles closer to each other than ``merge_distance``."""
 
     id: int
     cells: np.ndarray = field(repr=False)          # (N, 2) int (row, col) of the zone's area
@@ -114,18 +127,37 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
     labels = np.zeros(grid.data.shape, np.int32)
     zones: list[Zone] = []
     wide = skel & fits & ~narrow
-    for k in range(1, n + 1):
-        line = runs == k
-        length = _line_length(line, res)
-        if length < cfg.min_length:
-            continue
+    kept = [k for k in range(1, n + 1) if _line_length(runs == k, res) >= cfg.min_length]
+    for group in _merge_close(kept, owner, res, cfg.merge_distance):
+        line = np.isin(runs, group)
+        area = np.isin(owner, group)
         zid = len(zones) + 1
-        area = owner == k
         labels[area] = zid
         w = width[line]
-        zones.append(Zone(zid, np.argwhere(area), float(w.min()), float(w.max()), length,
+        zones.append(Zone(zid, np.argwhere(area), float(w.min()), float(w.max()), _line_length(line, res),
                           _holding_points(line, area, wide, dist, info, cfg)))
     return ZoneMap(info, labels, zones)
+
+
+def _merge_close(runs: list[int], owner: np.ndarray, res: float, within: float) -> list[list[int]]:
+    """Groups of run labels whose areas are closer than ``within`` m (transitively), in label order."""
+    parent = {k: k for k in runs}
+
+    def find(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for i, a in enumerate(runs):
+        d = ndimage.distance_transform_edt(owner != a) * res
+        for b in runs[i + 1:]:
+            if find(a) != find(b) and float(d[owner == b].min()) < within:
+                parent[find(b)] = find(a)
+    groups: dict[int, list[int]] = {}
+    for k in runs:
+        groups.setdefault(find(k), []).append(k)
+    return sorted(groups.values())
 
 
 def _line_length(line: np.ndarray, res: float) -> float:

@@ -89,18 +89,28 @@ def test_unknown_cells_are_obstacles() -> None:
 
 
 def test_the_cafe_aisles_are_zones_exactly_where_two_robots_cannot_pass() -> None:
-    """The café's dead-end aisles (cafe.yaml): 0.90 m (n1|n2) is two-lane, the 0.50-0.75 m ones are zones."""
+    """The café's dead-end aisles (cafe.yaml): 0.90 m (n1|n2) is two-lane, the 0.50-0.75 m ones are zones;
+    neighbouring aisles one table (0.8 m) apart are one zone, and no two zones are closer than
+    merge_distance."""
     zm = extract_zones(load_map(MAPS / "cafe_map.yaml"), CFG)
     assert zm.zone_at(2.15, 4.2) == 0                   # table_n1's pose, in the 0.90 m aisle
-    single = {"table_n2": (3.775, 4.2), "table_n3": (5.25, 4.2), "table_n4": (6.66, 4.2),
-              "table_s1": (2.025, 0.4), "table_s2": (3.425, 0.4), "table_s3": (4.75, 0.4)}
-    ids = {name: zm.zone_at(x, y) for name, (x, y) in single.items()}
-    assert all(ids.values()), ids
-    assert len(set(ids.values())) == len(ids)            # each aisle its own zone
+    south = [zm.zone_at(x, 0.4) for x in (2.025, 3.425, 4.75)]       # table_s1, _s2, _s3
+    north = [zm.zone_at(x, 4.2) for x in (3.775, 5.25, 6.66)]        # table_n2, _n3, _n4
+    assert all(south) and len(set(south)) == 1, south
+    assert all(north) and len(set(north)) == 1, north
+    assert south[0] != north[0]
     assert zm.zone_at(3.5, 2.3) == 0                     # the 2 m corridor
     for z in zm.zones:
         for hx, hy in z.holding_points:
             assert 1.27 < hy < 3.33 and zm.zone_at(hx, hy) == 0, (z.id, hx, hy)   # waiting in the corridor
+    info = zm.info
+    for a in zm.zones:
+        ax, ay = info.cell_to_world(a.cells[:, 0], a.cells[:, 1])
+        for b in zm.zones:
+            if b.id > a.id:
+                bx, by = info.cell_to_world(b.cells[::7, 0], b.cells[::7, 1])
+                gap = np.min(np.hypot(ax[:, None] - bx[None, :], ay[:, None] - by[None, :]))
+                assert gap >= CFG.merge_distance - 2 * RES, (a.id, b.id, gap)
 
 
 def test_bad_settings_are_named() -> None:

@@ -21,6 +21,9 @@ move_base's state machine:
   when the last one has run and the robot is still stuck the goal aborts.
 * No usable pose (stale tf, no recent scan: the node passes ``pose=None``
   and why): stop; the goal aborts after ``controller_patience`` without one.
+* HELD (:meth:`Navigator.set_hold`, a fleet's traffic rule: wait outside a single-lane zone another
+  robot holds): once the goal has a plan, stop and wait as long as the hold lasts; no patience runs
+  out and nothing is recovered meanwhile, and every timer starts afresh when it ends.
 
 Also here, pure: the node's own parameters (:class:`NodeParams`, read with
 :func:`read_move_base_params`), goal checking (:func:`parse_goal`) and the
@@ -293,7 +296,13 @@ class Navigator:
         self.state = "idle"
         self.status = "idle"            # human-readable goal status (the last event)
         self._events: list[str] = []
+        self.hold = ""                  # why the robot must wait ('' = it may drive): set_hold
         self._reset_timers(0.0)
+
+    def set_hold(self, reason: str) -> None:
+        """Make the robot wait (``reason``, e.g. 'waiting for zone 3, held by chefbot2') or, with '',
+        let it drive on.  A held goal neither recovers nor aborts for lack of progress."""
+        self.hold = reason
 
     def _say(self, status: str) -> None:
         """Record a goal status change (the node logs each once and publishes the latest)."""
@@ -465,6 +474,12 @@ class Navigator:
             self._say(f"stopped: {why}")
             return StepResult(0.0, 0.0, self.state, text=why)
         self.stale_since = None
+        if self.hold and self.state in ("controlling", "recovering"):   # a plan exists: wait on it
+            self._reset_timers(t)
+            self.need_plan = False
+            self.state = "controlling"
+            self._say(f"waiting: {self.hold}")
+            return StepResult(0.0, 0.0, self.state, text=self.hold)
         if self.state == "recovering":
             return self._recover(t, pose)
         new_plan = None

@@ -308,3 +308,40 @@ def test_periodic_replan_keeps_a_clear_path_unless_clearly_shorter() -> None:
     planner.direct = True
     nav.step(4.6, pose)
     assert len(ctrl.paths) == 2 and len(ctrl.paths[-1]) == 2
+
+
+def test_a_hold_stops_the_robot_for_as_long_as_it_lasts_then_it_drives_on() -> None:
+    """The fleet's traffic rule holds a robot outside a zone: it waits far longer than every patience
+    (oscillation 5 s, controller 2 s) without recovering or aborting, then reaches its goal."""
+    nav, _ = make_nav(oscillation_timeout=5.0, controller_patience=2.0)
+    nav.set_goal(Goal(2.0, 0.0, math.pi / 2), 0.0)
+    held_at, states = None, set()
+
+    def hook(t: float, pose: Pose2D) -> None:
+        nonlocal held_at
+        if 1.0 <= t < 31.0:
+            nav.set_hold("waiting for zone 1, held by chefbot2")
+            if held_at is None and nav.plan is not None:
+                held_at = pose
+            states.add(nav.status)
+        elif t >= 31.0:
+            nav.set_hold("")
+        if held_at is not None and 2.0 <= t < 31.0:
+            assert pose.distance(held_at) < 0.05, f"moved while held at t={t:.1f}"
+            assert nav.recovery is None
+
+    res, pose, t = run(nav, Pose2D(-2.0, 0.0, 0.0), hook=hook)
+    assert res.outcome == "succeeded", res.text
+    assert t > 31.0
+    assert "waiting: waiting for zone 1, held by chefbot2" in states
+    assert math.hypot(pose.x - 2.0, pose.y) <= 0.05
+
+
+def test_a_hold_before_the_first_plan_still_lets_the_goal_be_planned() -> None:
+    nav, _ = make_nav()
+    nav.set_hold("waiting for zone 2, held by chefbot3")
+    nav.set_goal(Goal(2.0, 0.0, None), 0.0)
+    nav.step(0.0, Pose2D(-2.0, 0.0, 0.0))
+    assert nav.plan is not None                      # the traffic rule needs the plan to decide
+    res = nav.step(0.1, Pose2D(-2.0, 0.0, 0.0))
+    assert (res.v, res.w, res.outcome) == (0.0, 0.0, None)

@@ -1,0 +1,129 @@
+"""The fleet's traffic rule in the loop (pure): per robot and cycle, from its pose and its global plan,
+which single-lane zone it needs, whether it may go on, and what it must be told.
+
+Per robot, each cycle (:meth:`TrafficRule.update`):
+
+1. a robot whose footprint touches a zone is *in* it: it asks for it (granted unless another robot
+   got there first) and drives on — it cannot wait inside;
+2. a zone it holds but neither touches nor has next on its plan is released;
+3. otherwise the first zone its remaining plan enters within ``lookahead`` m is asked for: granted,
+   it drives on; refused, it drives on until its centre is ``hold_distance`` + ``hold_margin`` from
+   the zone's area and then waits there (the hold's text names the zone and its holder).
+
+Zones are far enough apart (:attr:`chefbot_fleet.zones.ZoneConfig.merge_distance`) that a robot
+waiting for the next zone is clear of the last one, so no robot holds a zone while it waits: see
+:mod:`chefbot_fleet.reservations` for why that leaves no deadlock.  A robot whose pose is unknown
+is not heard of: after the table's timeout it loses its zone.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from chefbot_common.geometry import Pose2D
+from chefbot_fleet.reservations import ZoneTable
+from chefbot_fleet.zones import ZoneConfig, ZoneMap
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    """How far ahead a robot books a zone, and when a silent robot loses its zone."""
+
+    lookahead: float = 3.0             # [m] along the remaining plan: the next zone this close is asked for
+    timeout: float = 10.0              # [s] a robot not heard of this long loses its zone (its stack died)
+
+    def __post_init__(self) -> None:
+        if not self.lookahead > 0:
+            raise ValueError(f"lookahead must be > 0 m, got {self.lookahead}")
+        if not self.timeout > 0:
+            raise ValueError(f"timeout must be > 0 s, got {self.timeout}")
+
+
+class ZoneGeometry:
+    """Distances (m) from any map point to each zone's area (one distance transform per zone)."""
+
+    def __init__(self, zmap: ZoneMap) -> None:
+        self.zmap = zmap
+        res = zmap.info.resolution
+        self.dist = {z.id: ndimage.distance_transform_edt(zmap.labels != z.id) * res for z in zmap.zones}
+
+    def _cell(self, x: float, y: float) -> tuple[int, int] | None:
+        row, col = self.zmap.info.world_to_cell(x, y)
+        h, w = self.zmap.labels.shape
+        return (int(row), int(col)) if 0 <= row < h and 0 <= col < w else None
+
+    def distance(self, zone: int, x: float, y: float) -> float:
+        """From (x, y) to the zone's area (0 inside; inf off the map)."""
+        cell = self._cell(x, y)
+        return float(self.dist[zone][cell]) if cell is not None else float("inf")
+
+    def touching(self, x: float, y: float, radius: float) -> list[int]:
+        """The zones a disc of ``radius`` m at (x, y) overlaps, in id order."""
+        cell = self._cell(x, y)
+        if cell is None:
+            return []
+        return [z for z, d in self.dist.items() if d[cell] <= radius]
+
+    def next_zone(self, plan: np.ndarray, x: float, y: float, radius: float, lookahead: float,
+                  skip: int = 0) -> int:
+        """The first zone other than ``skip`` a footprint of ``radius`` following ``plan`` ((N, 2) m)
+        from its point nearest (x, y) would touch within ``lookahead`` m (0: none)."""
+        pts = np.asarray(plan, float).reshape(-1, 2)
+        if len(pts) == 0 or not self.dist:
+            return 0
+        start = int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))
+        travelled = 0.0
+        prev = pts[start]
+        for p in pts[start:]:
+            travelled += float(np.hypot(*(p - prev)))
+            prev = p
+            if travelled > lookahead:
+                break
+            for z in self.touching(float(p[0]), float(p[1]), radius):
+                if z != skip:
+                    return z
+        return 0
+
+
+class TrafficRule:
+    """The zone table and the per-robot decision (see the module docstring)."""
+
+    def __init__(self, zmap: ZoneMap, zone_cfg: ZoneConfig | None = None, cfg: TrafficConfig | None = None) -> None:
+        self.zcfg = zone_cfg or ZoneConfig()
+        self.cfg = cfg or TrafficConfig()
+        self.geom = ZoneGeometry(zmap)
+        self.table = ZoneTable(timeout=self.cfg.timeout)
+
+    def update(self, robot: str, pose: Pose2D | None, plan: np.ndarray | None, now: float) -> str:
+        """One cycle for ``robot`` at ``pose`` (map frame; None: unknown) following ``plan`` (its remaining
+        global plan, (N, 2) m; None or empty: no goal).  Returns why it must wait ('' = it may drive)."""
+        if pose is None:
+            return ""
+        t = self.table
+        t.heartbeat(robot, now)
+        r = self.zcfg.robot_radius
+        inside = self.geom.touching(pose.x, pose.y, r)
+        held = t.held_by(robot)
+        ahead = self.geom.next_zone(plan, pose.x, pose.y, r, self.cfg.lookahead) if plan is not None else 0
+        if held and held not in inside and held != ahead:
+            t.release(robot, now)
+            held = 0
+        if inside:
+            if not held:
+                t.request(robot, inside[0], now)   # in it already: it cannot wait here
+            return ""
+        if not ahead or held == ahead:
+            return ""
+        if held:               # booked a zone it no longer heads for first: give it back
+            t.release(robot, now)
+        if t.request(robot, ahead, now):
+            return ""
+        if self.geom.distance(ahead, pose.x, pose.y) <= self.zcfg.hold_distance + self.zcfg.hold_margin:
+            return f"waiting for zone {ahead}, held by {t.holder.get(ahead, '?')}"
+        return ""
+
+    def expire(self, now: float) -> list[tuple[str, int]]:
+        """Release every robot not heard of for ``timeout`` s: (robot, zone it held)."""
+        return self.table.expire(now)

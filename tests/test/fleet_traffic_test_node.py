@@ -1,0 +1,106 @@
+#!/usr/bin/env python3
+"""rostest node for fleet_traffic.test: two ChefBots head-on in one of the café's single-lane aisles.
+
+chefbot1 delivers to ``~table`` at the end of a dead-end aisle one robot wide; then, at once,
+chefbot1 is sent back to its parking pose (out of the aisle) and chefbot2 to the same table (into
+it). With chefbot_fleet's traffic rule chefbot2 waits outside the aisle's zone until chefbot1 is
+out, and both arrive: both SUCCEEDED, never both robots in the zone at once (ground truth against
+the zone computed from the map), no bumper contact, and chefbot2's move_base reported waiting.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import unittest
+
+import rospy
+import rostest
+from fleet_world_test_node import Robot
+from std_msgs.msg import String
+
+from chefbot_common.fleet_file import load_fleet
+from chefbot_common.map_io import load_map
+from chefbot_common.rostest_helpers import wait_for
+from chefbot_common.tables import load_tables
+from chefbot_fleet.zones import ZoneConfig, extract_zones
+
+PKG = "chefbot_tests"
+CFG = ZoneConfig()
+
+
+class FleetTrafficTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls) -> None:
+        cls.fleet = {r.name: r for r in load_fleet(rospy.get_param("~fleet_file"))}
+        cls.tables = load_tables(rospy.get_param("~tables"))
+        cls.table = rospy.get_param("~table")
+        cls.zones = extract_zones(load_map(rospy.get_param("~map_file")), CFG)
+        cls.one, cls.two = Robot("chefbot1"), Robot("chefbot2")
+        cls.lock = threading.Lock()
+        cls.states: list[str] = []
+        cls.both_inside = 0
+        rospy.Subscriber("/chefbot2/move_base/navigation_state", String, cls.on_state, queue_size=50)
+        for r in (cls.one, cls.two):
+            assert r.client.wait_for_server(rospy.Duration(180.0)), f"no /{r.name}/move_base"
+            wait_for(lambda r=r: r.pose is not None, 60.0, f"{r.name} ground truth", stop=rospy.is_shutdown)
+        rospy.Timer(rospy.Duration(0.05), cls.watch)
+
+    @classmethod
+    def on_state(cls, msg: String) -> None:
+        with cls.lock:
+            cls.states.append(msg.data)
+
+    @classmethod
+    def in_zone(cls, robot: Robot, zone: int) -> bool:
+        x, y = robot.xy()
+        d = min((math.hypot(x - cx, y - cy) for cx, cy in cls.zone_cells(zone)), default=math.inf)
+        return d <= CFG.robot_radius - 0.02     # the body overlaps the zone's area (2 cm for noise)
+
+    @classmethod
+    def zone_cells(cls, zone: int):
+        info = cls.zones.info
+        cells = cls.zones.zones[zone - 1].cells
+        xs, ys = info.cell_to_world(cells[:, 0], cells[:, 1])
+        return zip(xs, ys, strict=True)
+
+    @classmethod
+    def watch(cls, _event) -> None:
+        zone = getattr(cls, "zone", 0)
+        if zone and cls.in_zone(cls.one, zone) and cls.in_zone(cls.two, zone):
+            with cls.lock:
+                cls.both_inside += 1
+
+    def test_head_on_in_a_single_lane_aisle_both_arrive_one_after_the_other(self) -> None:
+        goal = self.tables[self.table]
+        zone = self.zones.zone_at(goal.x, goal.y)
+        self.assertTrue(zone, f"{self.table} is not in a single-lane zone of the map")
+        self.one.go(self, goal, f"to {self.table}")
+        type(self).zone = zone
+        park = self.fleet["chefbot1"].parking
+        results = {}
+
+        def go(robot, target, what):
+            try:
+                robot.go(self, target, what)
+                results[robot.name] = "ok"
+            except AssertionError as exc:
+                results[robot.name] = str(exc)
+
+        threads = [threading.Thread(target=go, args=(self.one, park, "out to its parking pose")),
+                   threading.Thread(target=go, args=(self.two, goal, f"into {self.table}"))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        self.assertEqual(results, {"chefbot1": "ok", "chefbot2": "ok"})
+        with self.lock:
+            both, states = self.both_inside, list(self.states)
+        self.assertEqual(both, 0, "both robots were in the aisle's zone at once")
+        self.assertTrue(any(s.startswith(f"waiting: waiting for zone {zone}") for s in states),
+                        f"chefbot2 never waited for zone {zone}: {states}")
+        self.assertEqual((self.one.contacts, self.two.contacts), (0, 0), "a bumper was pressed")
+
+
+if __name__ == "__main__":
+    rospy.init_node("fleet_traffic_test")
+    rostest.rosrun(PKG, "fleet_traffic_test", FleetTrafficTest)
