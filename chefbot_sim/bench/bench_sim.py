@@ -6,6 +6,8 @@ Rows:
 * the sim core alone (no ROS; physics + sensors at their rates), plugin drive,
   three sensor loads; and the firmware drive (our firmware core stepped every
   physics step, commands fed straight into it);
+* the fleet core (chefbot_sim.fleet): 1, 2 and 3 robots in one hotel world, all sensors, each
+  robot driving circles in the free area (they see each other);
 * through ROS (not with --quick): ``chefbot_hotel_world.launch
   real_time_factor:=0`` on a private master (robot idle, depth_to_scan
   subscribed), measured as sim seconds per wall second over 20 s by
@@ -72,6 +74,31 @@ def _measure(urdf: str, sim_seconds: float, sensors: str, drive: str = "plugin")
     return sim_seconds / wall, sim_seconds / cpu
 
 
+def _measure_fleet(urdf: str, sim_seconds: float, robots: int) -> tuple[float, float]:
+    """(sim s per wall s, sim s per CPU s) of ``robots`` ChefBots in one hotel world, all sensors on,
+    each driving 0.8 m circles west of the tables, 1.5 m apart (as hotel_fleet.yaml parks them)."""
+    from chefbot_common.geometry import Pose2D
+    from chefbot_sim.fleet import Fleet, RobotSpec
+    from chefbot_sim.sim import SimOptions
+    from chefbot_sim.world import load_world
+
+    starts_y = (0.0, -1.5, 1.5)
+    specs = [RobotSpec(f"chefbot{i + 1}", urdf, Pose2D(0.0, starts_y[i], 0.0),
+                       SimOptions(seed=i + 1, rgb_rate=2.0, rgb_width=80, rgb_height=60)) for i in range(robots)]
+    fleet = Fleet(load_world(PKG / "worlds" / "hotel.yaml"), specs)
+    try:
+        fleet.run(0.5)
+        t0, c0 = time.perf_counter(), time.process_time()
+        for i in range(int(round(sim_seconds / 0.1))):
+            for sim in fleet.sims:
+                sim.set_cmd_vel(0.25, 0.3 + 0.05 * math.sin(i * 0.1))
+            fleet.step(24)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        fleet.close()
+    return sim_seconds / wall, sim_seconds / cpu
+
+
 def _ros_rate(args: list[str], seconds: float = 20.0) -> dict:
     """Run ros_rate.py (own master, own session) and return its JSON figures."""
     out = subprocess.run([sys.executable, str(PKG / "bench" / "ros_rate.py"), "--seconds", str(seconds), *args],
@@ -106,6 +133,13 @@ def run(quick: bool = False) -> list[dict]:
         rows.append(_row(name, "x real time", ours, ref, f">= {GOAL:g}x", ours >= GOAL))
         rows.append(_row(name + " [per CPU second: an idle core]", "x real time", per_cpu, ref,
                          f">= {GOAL:g}x", per_cpu >= GOAL))
+    for n in (1, 2, 3):
+        ours, per_cpu = _measure_fleet(urdf, seconds, n)
+        goal = GOAL / n   # the core's goal shared by the robots
+        rows.append(_row(f"hotel fleet core: {n} robot(s) in one world, all sensors", "x real time", ours, None,
+                         f">= {goal:.3g}x", ours >= goal))
+        rows.append(_row(f"hotel fleet core: {n} robot(s) in one world, all sensors [per CPU second]",
+                         "x real time", per_cpu, None, f">= {goal:.3g}x", per_cpu >= goal))
     if quick:
         return rows
     tag = f"/tmp/chefbot_bench_lp_{os.getpid()}"

@@ -43,7 +43,8 @@ from chefbot_vision.cloud import Pinhole
 
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
 BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
-ROBOT_REACH = 1.0    # m: bound on a robot body's extent from its base_footprint (culls far robots from rays)
+ROBOT_REACH = 0.35   # m: bound on a robot body's extent from its base_footprint in the plane (ChefBot:
+                     # 0.178 m base; a margin for other shapes): rays passing farther are not cast
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper",
            "lidar")
 DRIVES = ("plugin", "firmware")
@@ -625,21 +626,35 @@ class Simulator:
     def _robot_hits(self, origin: np.ndarray, dirs: np.ndarray, max_t: float) -> np.ndarray:
         """For the ray-cast sensors (depth camera, sonar: the analytic caster sees only the
         static shapes): ``t`` of each ray ``origin + t·dir`` where it first hits another robot's
-        body, ``inf`` elsewhere.  Only robots whose centre is within reach are cast against
-        (pybullet rays, the robots' real collision shapes); alone in the world it costs nothing."""
+        body, ``inf`` elsewhere.  Only the rays that pass within ROBOT_REACH of another robot's
+        centre (in the plane) are cast, with pybullet, against those robots' real collision shapes;
+        alone in the world, or with the others out of sight, it costs next to nothing."""
+        out = np.full(len(dirs), np.inf)
         others = [r for r in self.bullet.robots if r is not self.body]
         if not others:
-            return np.full(len(dirs), np.inf)
-        reach = max_t * float(np.max(np.linalg.norm(dirs, axis=1))) + ROBOT_REACH
+            return out
+        d2 = dirs[:, :2]
+        near = np.zeros(len(dirs), bool)
         mask = 0
         for r in others:
-            if np.linalg.norm(r.base_state()[0][:2] - origin[:2]) <= reach:
+            c = r.base_state()[0][:2] - origin[:2]
+            along = d2 @ c                                   # t * |d|^2 at the closest approach
+            dd = np.einsum("ij,ij->i", d2, d2)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                closest = np.where(dd > 0, along / dd, 0.0)  # t of the closest approach to c
+            closest = np.clip(closest, 0.0, max_t)
+            gap = np.hypot(*(d2 * closest[:, None] - c).T)
+            hit = gap <= ROBOT_REACH
+            if hit.any():
+                near |= hit
                 mask |= r.group_bit
         if not mask:
-            return np.full(len(dirs), np.inf)
-        frac, _ = self.bullet.cast_rays(np.broadcast_to(origin, dirs.shape), origin + dirs * max_t, robots=mask,
-                                        world=False)
-        return np.where(frac < 1.0, frac * max_t, np.inf)
+            return out
+        sel = np.flatnonzero(near)
+        frac, _ = self.bullet.cast_rays(np.broadcast_to(origin, (len(sel), 3)), origin + dirs[sel] * max_t,
+                                        robots=mask, world=False)
+        out[sel] = np.where(frac < 1.0, frac * max_t, np.inf)
+        return out
 
     def lidar_scan(self) -> LidarData:
         """One scan of the lidar: a ray per beam in the laser frame's x-y plane, one ``rayTestBatch``
