@@ -90,8 +90,10 @@ def assign_runs(runs: list[list[str]], tables: dict, parkings: list) -> list[lis
 
 def settings() -> dict:
     """The demo's settings from the environment; FleetDemoError names a bad one."""
+    from demo import DemoInputError, table_names
+
     from chefbot_common.fleet_file import FleetFileError, load_fleet, select
-    from chefbot_common.tables import TablesError, load_destinations, load_tables
+    from chefbot_common.tables import TablesError, load_tables
 
     try:
         n = int(os.environ.get("CHEFBOT_DEMO_ROBOTS", "2"))
@@ -114,15 +116,9 @@ def settings() -> dict:
     try:
         robots = select(load_fleet(files["fleet"]), n, files["fleet"])
         tables = load_tables(files["tables"])
-        names = load_destinations(files["tables"])
-    except (FleetFileError, TablesError) as exc:
+        names = table_names(tables, files["tables"])      # the destinations, or CHEFBOT_DEMO_TABLES
+    except (FleetFileError, TablesError, DemoInputError) as exc:
         raise FleetDemoError(str(exc)) from None
-    subset = os.environ.get("CHEFBOT_DEMO_TABLES")
-    if subset:
-        names = [t.strip() for t in subset.split(",") if t.strip()]
-        unknown = [t for t in names if t not in tables]
-        if unknown:
-            raise FleetDemoError(f"CHEFBOT_DEMO_TABLES names unknown tables {unknown}; known: {sorted(tables)}")
     if n < 2:
         raise FleetDemoError(f"ROBOTS={n}: the fleet demo needs 2 or more robots (one robot: make demo)")
     runs = assign_runs(split_runs(names, n), tables, [r.parking for r in robots])

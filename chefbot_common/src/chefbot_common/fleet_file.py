@@ -24,10 +24,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from chefbot_common.geometry import Pose2D
-from chefbot_common.tables import TablesError, parse_pose
+from chefbot_common.tables import TablesError, parse_pose, read_yaml_file
 
 #: Closest two robots' reference poses may be (m): ChefBot's 0.356 m base diameter and a margin.
 MIN_APART = 0.45
@@ -52,14 +50,7 @@ def load_fleet(path: str | Path, min_apart: float = MIN_APART) -> list[FleetRobo
     """The robots of a fleet file, in file order (see the module docstring for the format).
     ``min_apart`` (m) is the least distance between two robots' start, parking and charger poses."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise FleetFileError(f"{path}: cannot read fleet file: {e.strerror}") from e
-    except UnicodeDecodeError as e:
-        raise FleetFileError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from e
-    except yaml.YAMLError as e:
-        raise FleetFileError(f"{path}: invalid YAML: {e}") from e
+    data = read_yaml_file(path, "fleet file", FleetFileError)
     if not isinstance(data, dict) or not isinstance(data.get("robots"), list):
         raise FleetFileError(f"{path}: expected a mapping with a 'robots' list")
     unknown = set(data) - {"frame", "site", "robots"}

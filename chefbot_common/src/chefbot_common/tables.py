@@ -93,16 +93,22 @@ def load_tables(path: str | Path) -> dict[str, Pose2D]:
     return _read(Path(path))[1]
 
 
+def read_yaml_file(path: Path, what: str, error: type[ValueError]) -> Any:
+    """The parsed YAML of ``path`` (a site file: ``what`` names its kind in messages), or ``error``
+    naming the file: unreadable, not UTF-8, or invalid YAML."""
+    try:
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise error(f"{path}: cannot read {what}: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise error(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from e
+    except yaml.YAMLError as e:
+        raise error(f"{path}: invalid YAML: {e}") from e
+
+
 def _read(path: Path) -> tuple[dict, dict[str, Pose2D]]:
     """The parsed YAML of a tables file and its poses, the whole file validated (:func:`load_tables`)."""
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise TablesError(f"{path}: cannot read tables file: {e.strerror}") from e
-    except UnicodeDecodeError as e:
-        raise TablesError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from e
-    except yaml.YAMLError as e:
-        raise TablesError(f"{path}: invalid YAML: {e}") from e
+    data = read_yaml_file(path, "tables file", TablesError)
     if not isinstance(data, dict) or not isinstance(data.get("poses"), dict):
         raise TablesError(f"{path}: expected a mapping with a 'poses' mapping")
     unknown = set(data) - {"frame", "world", "poses", "map_in_world", "destinations"}
