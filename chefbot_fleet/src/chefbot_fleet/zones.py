@@ -35,7 +35,8 @@ EIGHT = np.ones((3, 3), bool)
 class ZoneConfig:
     """What makes an aisle single-lane, and where robots wait outside one."""
 
-    robot_radius: float = 0.178        # [m] the robot's circumscribed radius (ChefBot's base: 0.178 m)
+    robot_radius: float = 0.178        # [m] the robot's half-width (ChefBot's round base: 0.178 m; the 0.279 m
+                                       # camera bar across its front stays within that sideways)
     passing_margin: float = 0.15       # [m] free width two robots need besides their two bodies to pass
     hold_clearance: float = 0.10       # [m] gap between a waiting robot's body and a robot that has just
                                        # left the zone (its body 2 radii out of the zone's area)
