@@ -1,15 +1,19 @@
 #!/usr/bin/env python3
-"""rostest node for fleet_traffic.test: two ChefBots head-on in one of the café's single-lane aisles.
+"""rostest node for fleet_traffic.test: two ChefBots in the café's single-lane aisles.
 
-chefbot1 delivers to ``~table`` at the end of a dead-end aisle one robot wide; then, at once,
-chefbot1 is sent back to its parking pose (out of the aisle) and chefbot2 to the same table (into
-it). With chefbot_fleet's traffic rule chefbot2 waits outside the aisle's zone until chefbot1 is
-out, and both arrive: both SUCCEEDED, never both robots in the zone at once (ground truth against
-the zone computed from the map), no bumper contact, and chefbot2's move_base reported waiting.
+1. Head-on: chefbot1 delivers to ``~table`` at the end of a dead-end aisle one robot wide; then, at
+   once, chefbot1 is sent back to its parking pose (out of the aisle) and chefbot2 to the same table
+   (into it). With chefbot_fleet's traffic rule chefbot2 waits outside the aisle's zone until
+   chefbot1 is out, and both arrive: both SUCCEEDED, never both robots in the zone at once (ground
+   truth against the zone computed from the map), no bumper contact, chefbot2 reported waiting.
+2. A dead robot: chefbot2's amcl is killed while it stands in that zone (its pose goes stale; the
+   launch goes on: a fleet robot's nodes are not required); chefbot1, sent to ``~other_table`` in
+   the same zone, waits until the traffic rule's timeout frees the zone, then arrives.
 """
 from __future__ import annotations
 
 import math
+import subprocess
 import threading
 import unittest
 
@@ -70,7 +74,7 @@ class FleetTrafficTest(unittest.TestCase):
             with cls.lock:
                 cls.both_inside += 1
 
-    def test_head_on_in_a_single_lane_aisle_both_arrive_one_after_the_other(self) -> None:
+    def test_1_head_on_in_a_single_lane_aisle_both_arrive_one_after_the_other(self) -> None:
         goal = self.tables[self.table]
         zone = self.zones.zone_at(goal.x, goal.y)
         self.assertTrue(zone, f"{self.table} is not in a single-lane zone of the map")
@@ -99,6 +103,30 @@ class FleetTrafficTest(unittest.TestCase):
         self.assertTrue(any(s.startswith(f"waiting: waiting for zone {zone}") for s in states),
                         f"chefbot2 never waited for zone {zone}: {states}")
         self.assertEqual((self.one.contacts, self.two.contacts), (0, 0), "a bumper was pressed")
+        type(self).zone = 0    # from here on the zone may hold a dead robot and a live one
+
+    def test_2_a_robot_whose_stack_died_in_a_zone_loses_it_after_the_timeout(self) -> None:
+        goal = self.tables[self.table]
+        other = self.tables[rospy.get_param("~other_table")]
+        zone = self.zones.zone_at(goal.x, goal.y)
+        self.assertEqual(self.zones.zone_at(other.x, other.y), zone, "~other_table must lie in ~table's zone")
+        self.assertTrue(self.in_zone(self.two, zone), "chefbot2 is not in the zone (test 1 left it there)")
+        with self.lock:
+            self.states.clear()
+        states1: list[str] = []
+        sub = rospy.Subscriber("/chefbot1/move_base/navigation_state", String, lambda m: states1.append(m.data),
+                               queue_size=50)
+        out = subprocess.run(["rosnode", "kill", "/chefbot2/amcl"], capture_output=True, text=True, timeout=30)
+        self.assertEqual(out.returncode, 0, out.stdout + out.stderr)
+        t0 = rospy.get_time()
+        self.one.go(self, other, "into the zone chefbot2 died in")
+        took = rospy.get_time() - t0
+        sub.unregister()
+        waited = [s for s in states1 if s.startswith(f"waiting: waiting for zone {zone}, held by chefbot2")]
+        self.assertTrue(waited, f"chefbot1 never waited for chefbot2's zone: {states1}")
+        timeout = rospy.get_param("/traffic/timeout", 10.0)
+        self.assertGreater(took, timeout, f"chefbot1 arrived after {took:.1f} s, before the {timeout:g} s timeout")
+        self.assertEqual(self.one.contacts, 0, "chefbot1's bumper was pressed")
 
 
 if __name__ == "__main__":
