@@ -115,7 +115,8 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
     info = grid.info
     res = info.resolution
     free = (grid.data >= 0) & (grid.data <= FREE_MAX)
-    skel, dist = medial_axis(free, return_distance=True)
+    # a fixed seed for medial_axis's random tie-breaking: the same map always gives the same zones
+    skel, dist = medial_axis(free, return_distance=True, rng=0)
     # the width at a centre-line cell: twice the distance from its centre to the nearest obstacle cell's
     # edge (the transform measures to that cell's centre: half a cell more)
     width = 2.0 * np.maximum(dist - 0.5, 0.0) * res
