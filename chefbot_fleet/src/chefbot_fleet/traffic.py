@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from chefbot_common.geometry import Pose2D
 from chefbot_fleet.reservations import ZoneTable
@@ -42,12 +41,11 @@ class TrafficConfig:
 
 
 class ZoneGeometry:
-    """Distances (m) from any map point to each zone's area (one distance transform per zone)."""
+    """Distances (m) from any map point to each zone's area (the zone map's distance fields)."""
 
     def __init__(self, zmap: ZoneMap) -> None:
         self.zmap = zmap
-        res = zmap.info.resolution
-        self.dist = {z.id: ndimage.distance_transform_edt(zmap.labels != z.id) * res for z in zmap.zones}
+        self.dist = zmap.distance
 
     def _cell(self, x: float, y: float) -> tuple[int, int] | None:
         row, col = self.zmap.info.world_to_cell(x, y)

@@ -89,6 +89,7 @@ class ZoneMap:
     info: object                                   # chefbot_common.grid.GridInfo of the map
     labels: np.ndarray = field(repr=False)         # (H, W) int32
     zones: list[Zone]
+    distance: dict[int, np.ndarray] = field(default_factory=dict, repr=False)   # zone id -> (H, W) m to its area
 
     def zone_at(self, x: float, y: float) -> int:
         """The zone id at world (x, y); 0 outside every zone (and outside the map)."""
@@ -129,16 +130,19 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
     labels = np.zeros(grid.data.shape, np.int32)
     zones: list[Zone] = []
     wide = skel & fits & ~narrow
+    wide_runs, _ = ndimage.label(wide, structure=EIGHT)
+    distance: dict[int, np.ndarray] = {}
     kept = [k for k in range(1, n + 1) if _line_length(runs == k, res) >= cfg.min_length]
     for group in _merge_close(kept, owner, res, cfg.merge_distance):
         line = np.isin(runs, group)
         area = np.isin(owner, group)
         zid = len(zones) + 1
         labels[area] = zid
+        distance[zid] = ndimage.distance_transform_edt(~area) * res
         w = width[line]
         zones.append(Zone(zid, np.argwhere(area), float(w.min()), float(w.max()), _line_length(line, res),
-                          _holding_points(line, area, wide, dist, info, cfg)))
-    return ZoneMap(info, labels, zones)
+                          _holding_points(line, wide_runs, distance[zid], info, cfg)))
+    return ZoneMap(info, labels, zones, distance)
 
 
 def _merge_close(runs: list[int], owner: np.ndarray, res: float, within: float) -> list[list[int]]:
@@ -171,18 +175,15 @@ def _line_length(line: np.ndarray, res: float) -> float:
     return float((straight + diagonal * np.sqrt(2.0)) * res) if a.sum() > 1 else float(res)
 
 
-def _holding_points(line: np.ndarray, area: np.ndarray, wide: np.ndarray, dist: np.ndarray, info,
+def _holding_points(line: np.ndarray, wide_runs: np.ndarray, to_area: np.ndarray, info,
                     cfg: ZoneConfig) -> list[tuple[float, float]]:
-    """Per mouth (a run of wide centre line touching the zone's line), the wide centre-line cell nearest
-    the mouth at least ``cfg.hold_distance`` from the zone's area: there the line is wide enough for two
-    robots, so the one leaving the zone passes the waiting one."""
-    res = info.resolution
-    touching = ndimage.binary_dilation(line, structure=EIGHT) & wide
+    """Per mouth (a run of wide centre line, labelled in ``wide_runs``, touching the zone's line), the
+    wide centre-line cell nearest the mouth at least ``cfg.hold_distance`` from the zone's area
+    (``to_area``: m from every cell): there the line is wide enough for two robots, so the one
+    leaving the zone passes the waiting one."""
+    touching = ndimage.binary_dilation(line, structure=EIGHT) & (wide_runs > 0)
     if not touching.any():
         return []
-    # distance (m) from every cell to the zone's area
-    to_area = ndimage.distance_transform_edt(~area) * res
-    wide_runs, _ = ndimage.label(wide, structure=EIGHT)
     need = cfg.hold_distance
     points = []
     for run in np.unique(wide_runs[touching]):
