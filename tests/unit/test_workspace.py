@@ -17,6 +17,7 @@ from catkin_pkg.package import parse_package
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = {
     "chefbot_common": "chefbot_common",
+    "chefbot_msgs": "chefbot_msgs",
     "chefbot_description": "chefbot_description",
     "chefbot_bringup": "chefbot_bringup",
     "chefbot_navigation": "chefbot_navigation",
