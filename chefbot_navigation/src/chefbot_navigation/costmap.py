@@ -21,6 +21,8 @@ FREE_SPACE = 0
 INSCRIBED = 253
 LETHAL = 254
 NO_INFORMATION = 255
+#: another robot's cells when the planner may plan through it (:meth:`LayeredCostmap.master`)
+ROBOT_COST = 252
 
 
 @dataclass(frozen=True)
@@ -138,10 +140,31 @@ class LayeredCostmap:
         # 3-D obstacles of the point-cloud source (pointcloud_layer.PointCloudLayer, set by move_base):
         # kept apart from the scan's marks so that scan rays passing under a table top do not clear it
         self.cloud_layer = None
+        # the other robots of a fleet (robots_layer.RobotsLayer, set by move_base): footprints lethal,
+        # their paths ahead a cost added after the inflation; rebuilt from their states, never cleared here
+        self.robots_layer = None
         self._master: np.ndarray | None = None
 
-    def _all_obstacles(self) -> np.ndarray:
+    def _marks(self) -> np.ndarray:
+        """What the sensors marked (scan and point cloud)."""
         return self.obstacles if self.cloud_layer is None else self.obstacles | self.cloud_layer.grid
+
+    def _all_obstacles(self) -> np.ndarray:
+        marks = self._marks()
+        return marks if self.robots_layer is None else marks | self.robots_layer.grid
+
+    def robots_in_view(self) -> bool:
+        """Does the robots layer mark any other robot?"""
+        return self.robots_layer is not None and bool(self.robots_layer.grid.any())
+
+    def _with_paths(self, cost: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+        """``cost`` (inflated, the grid's ``[rows, cols]``) raised to the other robots' path costs where
+        it is below inscribed."""
+        if self.robots_layer is not None:
+            paths = self.robots_layer.cost[rows, cols]
+            raise_ = (paths > cost) & (cost < INSCRIBED)
+            cost[raise_] = paths[raise_]
+        return cost
 
     def layers_changed(self) -> None:
         """An obstacle source changed its marks outside update_scan (the point-cloud layer)."""
@@ -149,7 +172,8 @@ class LayeredCostmap:
 
     # --- obstacle layer -------------------------------------------------------------------------
     def clear_obstacles(self) -> None:
-        """Forget every scan obstacle and every cell seen free (recovery 'clear costmaps')."""
+        """Forget every scan obstacle and every cell seen free (recovery 'clear costmaps'; the other
+        robots' layer stays: it is rebuilt from their states)."""
         self.obstacles[:] = False
         self.seen_free[:] = False
         if self.cloud_layer is not None:
@@ -214,10 +238,24 @@ class LayeredCostmap:
         static[self._all_obstacles()[rows, cols]] = LETHAL
         return static
 
-    def master(self) -> Costmap:
-        """The inflated global costmap (cached until the layers change)."""
+    def master(self, robots_as_cost: bool = False) -> Costmap:
+        """The inflated global costmap (cached until the layers change).
+
+        ``robots_as_cost``: the other robots (the robots layer's footprints, and what the sensors
+        marked on and right around them) are not obstacles but cells of cost :data:`ROBOT_COST`: the
+        way *through* a robot, for when it is the only way (the robot will drive on, or the traffic
+        rule make it give way); not cached."""
+        if robots_as_cost and self.robots_in_view():
+            robots = cv2.dilate(self.robots_layer.grid.astype(np.uint8), np.ones((3, 3), np.uint8)) != 0
+            base = self.static.copy()
+            base[(base == NO_INFORMATION) & self.seen_free] = FREE_SPACE
+            base[self._marks() & ~robots] = LETHAL
+            cost = self._with_paths(inflate(base, self.info.resolution, self.params), slice(None), slice(None))
+            cost[robots & (cost < ROBOT_COST)] = ROBOT_COST
+            return Costmap(self.info, cost)
         if self._master is None:
-            self._master = inflate(self.base(), self.info.resolution, self.params)
+            self._master = self._with_paths(inflate(self.base(), self.info.resolution, self.params),
+                                            slice(None), slice(None))
         return Costmap(self.info, self._master)
 
     def window(self, cx: float, cy: float, width: float, height: float, static_only: bool = False) -> Costmap:
@@ -243,7 +281,11 @@ class LayeredCostmap:
             if not static_only:
                 static = self._sensed(static, slice(sr0, sr1), slice(sc0, sc1))
             pad[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0] = static
-        cost = inflate(pad, res, self.params)[margin:margin + h, margin:margin + w]
+        cost = inflate(pad, res, self.params)
+        if not static_only and sr0 < sr1 and sc0 < sc1:
+            cost[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0] = self._with_paths(
+                cost[sr0 - pr0:sr1 - pr0, sc0 - pc0:sc1 - pc0], slice(sr0, sr1), slice(sc0, sc1))
+        cost = cost[margin:margin + h, margin:margin + w]
         ox = self.info.origin_x + c0 * res
         oy = self.info.origin_y + r0 * res
         return Costmap(GridInfo(res, w, h, ox, oy, 0.0), np.ascontiguousarray(cost))

@@ -376,11 +376,19 @@ class Navigator:
 
     def _try_plan(self, pose: Pose2D, t: float) -> tuple[Plan | None, PlanningError | None]:
         self.last_plan_time = t
+        start, goal = (pose.x, pose.y), (self.goal.x, self.goal.y)
         try:
-            plan = self.planner.plan(self.costmap.master(), (pose.x, pose.y), (self.goal.x, self.goal.y))
+            return self.planner.plan(self.costmap.master(), start, goal), None
         except PlanningError as exc:
-            return None, exc
-        return plan, None
+            if exc.kind not in GOAL_ERRORS or not self.costmap.robots_in_view():
+                return None, exc
+            err = exc
+        # another robot of the fleet is in the only way (in an aisle, on the goal): plan through it and
+        # wait behind it -- it drives on, or the traffic rule makes one of the two give way
+        try:
+            return self.planner.plan(self.costmap.master(robots_as_cost=True), start, goal), None
+        except PlanningError:
+            return None, err
 
     def _path_blocked(self, pose: Pose2D) -> bool:
         """Is there an inscribed/lethal/unknown cell on the path ahead (new obstacle)?"""

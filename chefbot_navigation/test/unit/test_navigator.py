@@ -12,6 +12,7 @@ from chefbot_navigation.controller import ControllerParams, make_controller
 from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
 from chefbot_navigation.navigator import Goal, Navigator, NavigatorParams
 from chefbot_navigation.planners import PlannerParams, make_planner
+from chefbot_navigation.robots_layer import OtherRobot, RobotsLayer, RobotsLayerParams
 
 DT = 0.1
 
@@ -345,3 +346,38 @@ def test_a_hold_before_the_first_plan_still_lets_the_goal_be_planned() -> None:
     assert nav.plan is not None                      # the traffic rule needs the plan to decide
     res = nav.step(0.1, Pose2D(-2.0, 0.0, 0.0))
     assert (res.v, res.w, res.outcome) == (0.0, 0.0, None)
+
+
+def test_another_robot_in_the_only_aisle_is_waited_behind_not_refused() -> None:
+    """A fleet robot stands in the one 0.6 m aisle: planning around it is impossible, so the goal is
+    planned through it (not aborted as unreachable); the robot stops short of it and drives on once
+    it has gone."""
+    n_x, n_y = 200, 60                   # 10 m x 3 m, origin (-5, -1.5)
+    data = np.zeros((n_y, n_x), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    data[:, 80:120] = 100                # a 2 m thick wall across x in [-1, 1] ...
+    data[24:36, 80:120] = 0              # ... with a 0.6 m aisle at y in [-0.3, 0.3]
+    layers = LayeredCostmap(OccupancyMap(GridInfo(0.05, n_x, n_y, -5.0, -1.5, 0.0), data),
+                            CostmapParams(robot_radius=0.2, inflation_radius=0.3))
+    layers.robots_layer = RobotsLayer(layers.info, RobotsLayerParams(footprint_padding=0.0), "chefbot1")
+    cp = ControllerParams()
+    nav = Navigator(NavigatorParams(), cp, make_planner("dijkstra", PlannerParams()),
+                    make_controller("regulated_pure_pursuit", cp), layers)
+    nav.set_goal(Goal(3.0, 0.0, None), 0.0)
+    closest = math.inf
+
+    def hook(t: float, pose: Pose2D) -> None:
+        nonlocal closest
+        if t < 15.0:
+            layers.robots_layer.update(OtherRobot("chefbot2", t, 0.0, 0.0, 0.0, radius=0.2))
+            closest = min(closest, math.hypot(pose.x, pose.y))
+        else:
+            layers.robots_layer.forget("chefbot2")
+        layers.robots_layer.refresh(t)
+        layers.layers_changed()
+
+    res, pose, t = run(nav, Pose2D(-3.0, 0.0, 0.0), hook=hook)
+    assert res.outcome == "succeeded", res.text
+    assert t > 15.0
+    assert closest >= 0.4 - 0.05, f"came {closest:.2f} m near the other robot's centre"
+    assert math.hypot(pose.x - 3.0, pose.y) <= 0.05
