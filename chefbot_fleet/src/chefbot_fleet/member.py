@@ -1,5 +1,8 @@
-"""What one robot of a fleet knows about itself from the site's fleet file (pure, no rospy)."""
+"""What one robot of a fleet knows about itself (pure, no rospy): its entry of the site's fleet file,
+the part of its plan still ahead, what it is doing."""
 from __future__ import annotations
+
+import numpy as np
 
 from chefbot_common.fleet_file import FleetFileError, FleetRobot, load_fleet
 
@@ -34,3 +37,30 @@ def initial_covariance(var_xy: float, var_yaw: float) -> list[float]:
     cov = [0.0] * 36
     cov[COV_X], cov[COV_Y], cov[COV_YAW] = float(var_xy), float(var_xy), float(var_yaw)
     return cov
+
+
+#: actionlib GoalStatus values of a goal still in the works (PENDING, ACTIVE, PREEMPTING, RECALLING)
+GOAL_IN_WORK = frozenset((0, 1, 6, 7))
+
+
+def remaining_path(points: np.ndarray, x: float, y: float, horizon: float) -> np.ndarray:
+    """The part (K, 2) of a global plan ``points`` (M, 2) still ahead of a robot at (x, y): from the plan
+    point nearest to it on, at most ``horizon`` m long (the point reaching it included).
+
+    The nearest point is searched along the whole plan; a plan that passes the robot twice (a loop)
+    is cut at the nearer pass."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) == 0 or horizon <= 0.0:
+        return pts[:0]
+    start = int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))
+    ahead = pts[start:]
+    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ahead, axis=0).T))))
+    return ahead[:int(np.searchsorted(cum, horizon, side="left")) + 1]
+
+
+def state_text(goal_statuses: list[int], hold: str) -> str:
+    """What a robot is doing, for people (RobotState.state): ``waiting: …`` while held with a goal in the
+    works, ``driving`` with one, else ``idle``."""
+    if not any(s in GOAL_IN_WORK for s in goal_statuses):
+        return "idle"
+    return f"waiting: {hold}" if hold else "driving"

@@ -1,13 +1,24 @@
-"""chefbot_fleet.member: which robot a fleet_member is, its fleet-file entry, its initial pose."""
+"""chefbot_fleet.member: which robot a fleet_member is, its fleet-file entry, its initial pose, the plan
+ahead and the state text it publishes."""
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from chefbot_common.fleet_file import FleetFileError
 from chefbot_common.geometry import Pose2D
-from chefbot_fleet.member import COV_X, COV_Y, COV_YAW, find_robot, initial_covariance, robot_name
+from chefbot_fleet.member import (
+    COV_X,
+    COV_Y,
+    COV_YAW,
+    find_robot,
+    initial_covariance,
+    remaining_path,
+    robot_name,
+    state_text,
+)
 
 HOTEL = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps" / "hotel_fleet.yaml"
 
@@ -38,3 +49,20 @@ def test_initial_covariance_is_diagonal_in_x_y_yaw() -> None:
     assert sum(1 for v in cov if v) == 3
     with pytest.raises(ValueError, match="> 0"):
         initial_covariance(0.0, 0.01)
+
+
+def test_remaining_path_starts_at_the_nearest_point_and_stops_at_the_horizon() -> None:
+    plan = np.column_stack((np.arange(0.0, 5.01, 0.05), np.zeros(101)))
+    ahead = remaining_path(plan, 1.02, 0.1, 2.0)
+    assert ahead[0] == pytest.approx([1.0, 0.0])
+    assert ahead[-1][0] == pytest.approx(3.0, abs=0.051)        # 2 m on, the point reaching it included
+    assert remaining_path(plan, 4.9, 0.0, 2.0)[-1] == pytest.approx([5.0, 0.0])     # the plan's end
+    assert remaining_path(plan, 1.0, 0.0, 0.0).shape == (0, 2)
+    assert remaining_path(np.zeros((0, 2)), 1.0, 0.0, 2.0).shape == (0, 2)
+
+
+def test_state_text() -> None:
+    assert state_text([], "") == "idle"
+    assert state_text([3, 2], "chefbot2 holds aisle 1") == "idle"           # succeeded, preempted: done
+    assert state_text([3, 1], "") == "driving"
+    assert state_text([1], "chefbot2 holds aisle 1") == "waiting: chefbot2 holds aisle 1"
