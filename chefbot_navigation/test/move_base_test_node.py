@@ -10,6 +10,7 @@ import math
 import os
 import subprocess
 import sys
+import threading
 import unittest
 
 import actionlib
@@ -30,6 +31,7 @@ from kinematic_robot import KinematicRobot
 from chefbot_common.geometry import Pose2D, quaternion_from_yaw, wrap_angle
 from chefbot_common.map_io import load_map
 from chefbot_common.rostest_helpers import wait_for
+from chefbot_msgs.msg import RobotState
 
 PKG = "chefbot_navigation"
 WALL_TIMEOUT = 240.0    # s, upper bound for one goal on a loaded machine
@@ -280,6 +282,55 @@ class MoveBaseTest(unittest.TestCase):
                                  for d in diags for st in d.status), 60.0, "map refusal on diagnostics")
         finally:
             sub.unregister()
+
+    def test_s_a_fleet_robot_it_cannot_see_is_planned_around_and_dropped_when_silent(self) -> None:
+        """/fleet/robots: another robot that no scan sees (it has no body here) stands on the straight
+        way below the box; move_base plans round the box instead, never comes near it, and drops it
+        once its states stop (~robots_layer/timeout, 2 s).  An unusable state is skipped."""
+        ghost = (2.0, -0.4)
+        pub = rospy.Publisher("/fleet/robots", RobotState, queue_size=5, latch=True)
+        stop = threading.Event()
+
+        def state(name: str, x: float) -> RobotState:
+            msg = RobotState(name=name, footprint_radius=0.18, state="idle")
+            msg.header.frame_id, msg.header.stamp = "map", rospy.Time.from_sec(self.robot.now)
+            msg.pose.x, msg.pose.y = x, ghost[1]
+            return msg
+
+        def publish() -> None:
+            while not stop.is_set():
+                pub.publish(state("chefbot8", math.nan))        # skipped with a warning
+                pub.publish(state("chefbot9", ghost[0]))
+                stop.wait(0.1)
+
+        def ghost_cost() -> int:
+            grid = rospy.wait_for_message("move_base/global_costmap/costmap", OccupancyGrid, 30.0)
+            col = int((ghost[0] - grid.info.origin.position.x) / grid.info.resolution)
+            row = int((ghost[1] - grid.info.origin.position.y) / grid.info.resolution)
+            return grid.data[row * grid.info.width + col]
+
+        self.go(make_goal(0.0, -0.4, 0.0))
+        thread = threading.Thread(target=publish, daemon=True)
+        thread.start()
+        try:
+            wait_for(lambda: ghost_cost() == 100, 60.0, "the other robot lethal in the global costmap")
+            self.plans.clear()
+            self.client.send_goal(make_goal(4.0, -0.4, 0.0))
+            closest = math.inf
+            deadline = rospy.get_time() + 600.0
+            while not self.client.wait_for_result(rospy.Duration(0.05)) and rospy.get_time() < deadline:
+                closest = min(closest, math.hypot(self.robot.pose.x - ghost[0], self.robot.pose.y - ghost[1]))
+            self.assertEqual(self.client.get_state(), GoalStatus.SUCCEEDED, self.client.get_goal_status_text())
+            self.assert_at(4.0, -0.4, 0.0)
+            # the robot's radius (0.2) + the other's (0.18) + padding (0.05), less a cell of rounding
+            self.assertGreaterEqual(closest, 0.43 - 0.05, "drove into the other robot")
+            plan = self.plans[0].poses
+            self.assertGreater(max(p.pose.position.y for p in plan), 0.95, "the plan did not go round the box")
+        finally:
+            stop.set()
+            thread.join(5.0)
+        wait_for(lambda: ghost_cost() < 99, 60.0, "the silent robot dropped from the global costmap")
+        pub.unregister()
 
     def test_m_bad_param_stops_node_naming_it(self) -> None:
         out = subprocess.run(["rosrun", PKG, "move_base", "__name:=bad_move_base", "_controller/max_vel_x:=-1.0"],
