@@ -24,6 +24,10 @@ move_base's state machine:
 * HELD (:meth:`Navigator.set_hold`, a fleet's traffic rule: wait outside a single-lane zone another
   robot holds): once the goal has a plan, stop and wait as long as the hold lasts; no patience runs
   out and nothing is recovered meanwhile, and every timer starts afresh when it ends.
+* RETREATING (:meth:`Navigator.request_retreat`, a fleet's mutual block: this robot gives way):
+  reverse along the way the robot came (its *trail*: the poses it drove through, the last
+  ``TRAIL_MAX`` x ``TRAIL_SPACING`` m, kept across goals) up to ``retreat_distance``, stopping early
+  if anything is behind it, then plan afresh.  A hold does not stop a retreat.
 
 Also here, pure: the node's own parameters (:class:`NodeParams`, read with
 :func:`read_move_base_params`), goal checking (:func:`parse_goal`) and the
@@ -47,6 +51,12 @@ from chefbot_navigation.costmap import INSCRIBED, LETHAL, CostmapParams, Layered
 from chefbot_navigation.footprint import Footprint
 from chefbot_navigation.planners import PLANNERS, GlobalPlanner, Plan, PlannerParams, PlanningError, make_planner
 
+TRAIL_SPACING = 0.05    # m between the trail's poses
+TRAIL_MAX = 80          # trail poses kept (4 m)
+TRAIL_JUMP = 0.5        # m: a pose this far from the last one is a relocalisation -- the trail restarts
+RETREAT_LOOKAHEAD = 0.25  # m back along the trail the retreat steers to
+RETREAT_SPEED = 0.1     # m/s
+
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
 RECOVERIES = ("clear_costmaps", "rotate", "back_off")
 
@@ -69,13 +79,16 @@ class NavigatorParams:
     narrow_patience: float = 5.0          # s blocked by the static map (a passage narrower than the robot) -> abort
     replan_hysteresis: float = 0.3        # m: until the robot moved this far from where its clear path was made, a
                                           # periodic replan replaces the path only if this much shorter
+    retreat_distance: float = 0.8         # [m] a retreat reverses this far along the way the robot came (> 0)
+    give_way_wait: float = 20.0           # [s] after a retreat, the robot waits while another robot is its only
+                                          # way, at most this long, before it plans through it again (> 0)
 
     def __post_init__(self) -> None:
         if self.planner_frequency < 0.0:
             raise ValueError(f"planner_frequency must be >= 0 Hz, got {self.planner_frequency}")
         for name in ("planner_patience", "controller_patience", "oscillation_distance", "path_check_distance",
                      "local_window", "back_off_distance", "back_off_speed", "rotate_speed",
-                     "narrow_patience"):
+                     "narrow_patience", "retreat_distance", "give_way_wait"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.oscillation_timeout < 0.0:
@@ -297,6 +310,11 @@ class Navigator:
         self.status = "idle"            # human-readable goal status (the last event)
         self._events: list[str] = []
         self.hold = ""                  # why the robot must wait ('' = it may drive): set_hold
+        self.trail: list[Pose2D] = []   # the poses the robot drove through, oldest first (RETREATING)
+        self.retreat_request = ""       # why another module asked for a retreat (request_retreat)
+        self.giving_way_until = -math.inf   # after a retreat: no planning through another robot until then
+        self._plan_through_robot = False    # the latest plan goes through another robot (robots_as_cost)
+        self.giving_way_reason = ""
         self._reset_timers(0.0)
 
     def set_hold(self, reason: str) -> None:
@@ -335,13 +353,28 @@ class Navigator:
         self.plan = None
         self.state = "planning"
         self.status = ""
+        self.giving_way_until = -math.inf
         self._say("planning")
         self._reset_timers(t)
 
     def restart(self, t: float) -> None:
         """Time jumped back: restart the current goal's timers at ``t`` (s)."""
+        self.trail.clear()
         if self.goal is not None:
             self.set_goal(self.goal, t)
+
+    def request_retreat(self, reason: str) -> None:
+        """Give way: at the next step of a goal, reverse up to ``retreat_distance`` along the way the
+        robot came, then plan afresh (a fleet's mutual block: this robot backs off for another)."""
+        self.retreat_request = reason or "asked to give way"
+
+    def _record(self, pose: Pose2D) -> None:
+        """Add ``pose`` to the trail when it is TRAIL_SPACING from the last one (a jump restarts it)."""
+        if self.trail and pose.distance(self.trail[-1]) > TRAIL_JUMP:
+            self.trail.clear()
+        if not self.trail or pose.distance(self.trail[-1]) >= TRAIL_SPACING:
+            self.trail.append(pose)
+            del self.trail[:-TRAIL_MAX]
 
     def plan_between(self, start: tuple[float, float], goal: Goal) -> Plan:
         """A global plan from ``start`` (x, y m) to the goal on the current costmap (PlanningError if none)."""
@@ -377,18 +410,21 @@ class Navigator:
     def _try_plan(self, pose: Pose2D, t: float) -> tuple[Plan | None, PlanningError | None]:
         self.last_plan_time = t
         start, goal = (pose.x, pose.y), (self.goal.x, self.goal.y)
+        self._plan_through_robot = False
         try:
             return self.planner.plan(self.costmap.master(), start, goal), None
         except PlanningError as exc:
-            if exc.kind not in GOAL_ERRORS or not self.costmap.robots_in_view():
+            if exc.kind not in GOAL_ERRORS or not self.costmap.robots_in_view() or t < self.giving_way_until:
                 return None, exc
             err = exc
         # another robot of the fleet is in the only way (in an aisle, on the goal): plan through it and
         # wait behind it -- it drives on, or the traffic rule makes one of the two give way
         try:
-            return self.planner.plan(self.costmap.master(robots_as_cost=True), start, goal), None
+            plan = self.planner.plan(self.costmap.master(robots_as_cost=True), start, goal)
         except PlanningError:
             return None, err
+        self._plan_through_robot = True
+        return plan, None
 
     def _path_blocked(self, pose: Pose2D) -> bool:
         """Is there an inscribed/lethal/unknown cell on the path ahead (new obstacle)?"""
@@ -421,6 +457,46 @@ class Navigator:
         self._say(f"recovering: {self.recovery.replace('_', ' ')} (because {why})")
         return self._recover(t, pose)
 
+    def _start_retreat(self, t: float, pose: Pose2D, why: str) -> StepResult:
+        """Reverse along the trail (the recovery 'retreat', outside the recovery order)."""
+        self.recovery = "retreat"
+        self.recovery_reason = why
+        self.recovery_state = {"t0": t, "yaw": pose.yaw, "turned": 0.0, "x": pose.x, "y": pose.y, "moved": 0.0,
+                               "last_x": pose.x, "last_y": pose.y}
+        self.state = "recovering"
+        self.controller.reset()
+        self._say(f"backing out the way it came (because {why})")
+        return self._recover(t, pose)
+
+    def _retreat_command(self, t: float, pose: Pose2D) -> tuple[float, float, bool]:
+        """(v, w, done) of one retreat step: steer backwards to the trail pose RETREAT_LOOKAHEAD m back."""
+        rs = self.recovery_state
+        rs["moved"] += math.hypot(pose.x - rs["last_x"], pose.y - rs["last_y"])
+        rs["last_x"], rs["last_y"] = pose.x, pose.y
+        # steer to the first trail pose (going back) at least RETREAT_LOOKAHEAD away
+        while len(self.trail) > 1 and pose.distance(self.trail[-1]) < RETREAT_LOOKAHEAD:
+            self.trail.pop()
+        timeout = t - rs["t0"] > 3.0 * self.p.retreat_distance / RETREAT_SPEED + 2.0
+        if rs["moved"] >= self.p.retreat_distance or timeout or not self.trail or \
+                pose.distance(self.trail[-1]) < 0.5 * TRAIL_SPACING:
+            return 0.0, 0.0, True
+        target = self.trail[-1]
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        dx, dy = target.x - pose.x, target.y - pose.y
+        lx, ly = -(c * dx + s * dy), -(-s * dx + c * dy)      # mirrored: the target as if it were ahead
+        if lx <= 0.0 or abs(math.atan2(ly, lx)) > 1.0:
+            return 0.0, 0.0, True                                # the trail is not behind the robot
+        curvature = 2.0 * ly / (lx * lx + ly * ly)
+        v = -RETREAT_SPEED
+        w = -v * curvature
+        w = min(max(w, -self.cp.max_vel_theta), self.cp.max_vel_theta)
+        local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
+        arc = getattr(self.controller, "arc_collides", None)
+        blocked = arc(pose, v, w, local) if arc is not None else _arc_blocked(local, pose, v, RETREAT_LOOKAHEAD)
+        if blocked:     # something came behind the robot (a guest, another robot): stop retreating
+            return 0.0, 0.0, True
+        return v, w, False
+
     def _recover(self, t: float, pose: Pose2D) -> StepResult:
         rs = self.recovery_state
         done = False
@@ -440,6 +516,12 @@ class Navigator:
                 done = True
                 self._say("recovering: rotate skipped (no room to turn on the spot)")
             w = 0.0 if done else self.p.rotate_speed
+        elif self.recovery == "retreat":
+            v, w, done = self._retreat_command(t, pose)
+            if done:    # now let the other robot through: no planning through it for a while
+                self.giving_way_until = t + self.p.give_way_wait
+                self.giving_way_reason = self.recovery_reason
+                self.last_plan_time = -math.inf     # plan at once from here
         elif self.recovery == "back_off":
             moved = math.hypot(pose.x - rs["x"], pose.y - rs["y"])
             behind = Pose2D(pose.x, pose.y, pose.yaw)
@@ -474,6 +556,7 @@ class Navigator:
         the command is zero, and the goal aborts once that has lasted ``controller_patience``.
         """
         if self.goal is None:
+            self.retreat_request = ""
             return StepResult(0.0, 0.0, "idle")
         if pose is None:
             self.stale_since = t if self.stale_since is None else self.stale_since
@@ -482,7 +565,14 @@ class Navigator:
             self._say(f"stopped: {why}")
             return StepResult(0.0, 0.0, self.state, text=why)
         self.stale_since = None
-        if self.hold and self.state in ("controlling", "recovering"):   # a plan exists: wait on it
+        if self.recovery != "retreat":
+            self._record(pose)
+        if self.retreat_request and len(self.trail) > 1:
+            why, self.retreat_request = self.retreat_request, ""
+            return self._start_retreat(t, pose, why)
+        self.retreat_request = ""
+        if self.hold and self.state in ("controlling", "recovering") and self.recovery != "retreat":
+            # a plan exists: wait on it (a retreat giving way goes on: it is what the hold waits for)
             self._reset_timers(t)
             self.need_plan = False
             self.state = "controlling"
@@ -509,6 +599,8 @@ class Navigator:
                 # plan from a pose a few mm off flipped sides, and the robot turned back after half a turn
                 self.last_valid_plan = t
             elif plan is not None:
+                if t < self.giving_way_until and not self._plan_through_robot:
+                    self.giving_way_until = -math.inf       # a way round the other robot: giving way is over
                 self.plan, self.plan_from = plan, pose
                 new_plan = plan
                 self.need_plan = False
@@ -520,6 +612,12 @@ class Navigator:
                 self.cleared_for_goal = True
                 self.costmap.clear_obstacles()
                 return self._step(t, pose)
+            elif t < self.giving_way_until and self.costmap.robots_in_view():
+                # giving way: another robot is the only way; wait for it to pass, no patience running
+                self.last_valid_plan = self.last_valid_control = t
+                self.osc_pose, self.osc_time = pose, t
+                self._say(f"waiting: giving way ({self.giving_way_reason})")
+                return StepResult(0.0, 0.0, "planning", text=self.giving_way_reason)
             elif err.kind in GOAL_ERRORS and not self._blocked_by_sensors(err):
                 return self._finish("aborted", f"Failed to plan: {err.reason}")
             elif self.plan is None or self.need_plan:
@@ -531,6 +629,10 @@ class Navigator:
                 return StepResult(0.0, 0.0, "planning")
         if self.plan is None:
             return StepResult(0.0, 0.0, "planning")
+        if self.need_plan and t < self.giving_way_until:
+            # giving way, between two planning attempts: not a step along the old plan (towards the robot)
+            self.last_valid_plan = self.last_valid_control = t
+            return StepResult(0.0, 0.0, "planning", text=self.giving_way_reason)
         local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
         cmd = self.controller.compute(pose, t, local)
         if cmd.status == "arrived":

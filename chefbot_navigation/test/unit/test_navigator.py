@@ -381,3 +381,86 @@ def test_another_robot_in_the_only_aisle_is_waited_behind_not_refused() -> None:
     assert t > 15.0
     assert closest >= 0.4 - 0.05, f"came {closest:.2f} m near the other robot's centre"
     assert math.hypot(pose.x - 3.0, pose.y) <= 0.05
+
+
+def polyline_distance(p: Pose2D, poses: list[Pose2D]) -> float:
+    """Distance (m) from ``p`` to the polyline through ``poses``."""
+    a = np.array([[q.x, q.y] for q in poses[:-1]])
+    b = np.array([[q.x, q.y] for q in poses[1:]])
+    d = b - a
+    t = np.clip(((p.x - a[:, 0]) * d[:, 0] + (p.y - a[:, 1]) * d[:, 1]) / np.maximum((d ** 2).sum(1), 1e-12), 0, 1)
+    return float(np.min(np.hypot(a[:, 0] + t * d[:, 0] - p.x, a[:, 1] + t * d[:, 1] - p.y)))
+
+
+def test_a_requested_retreat_backs_along_the_way_the_robot_came_then_goes_on() -> None:
+    """request_retreat (a fleet's mutual block): the robot reverses retreat_distance along its own
+    curved trail -- never more than a few cm off it -- then replans and reaches the goal."""
+    nav, _ = make_nav(retreat_distance=0.8)
+    nav.set_goal(Goal(2.0, 3.0, None), 0.0)            # round the wall's north end: a curved way
+    trail_then, retreat, off = None, [], []
+
+    def hook(t: float, pose: Pose2D) -> None:
+        nonlocal trail_then
+        if trail_then is None and math.hypot(pose.x - 0.0, pose.y - 2.3) < 0.3:
+            trail_then = [*nav.trail, pose]
+            nav.request_retreat("chefbot1 and chefbot2 block each other")
+        if nav.recovery == "retreat":
+            retreat.append(pose)
+            off.append(polyline_distance(pose, trail_then))
+
+    res, pose, t = run(nav, Pose2D(-2.0, 0.0, 0.0), hook=hook)
+    assert res.outcome == "succeeded", res.text
+    assert trail_then is not None and len(retreat) > 5
+    backed = sum(a.distance(b) for a, b in zip(retreat, retreat[1:], strict=False))
+    assert 0.6 <= backed <= 0.8 + 0.1
+    assert max(off) < 0.03, f"left its trail by {max(off):.3f} m"
+    assert math.hypot(pose.x - 2.0, pose.y - 3.0) <= 0.05
+
+
+def test_a_retreat_stops_at_an_obstacle_behind_and_needs_a_trail() -> None:
+    nav, layers = make_nav()
+    nav.set_goal(Goal(-2.0, 1.0, None), 0.0)
+    pose = Pose2D(-2.0, -1.0, math.pi / 2)
+    for i in range(12):                                    # drive 0.55 m north: a straight trail
+        nav.step(0.1 * i, Pose2D(pose.x, pose.y + 0.05 * i, pose.yaw))
+    pose = Pose2D(-2.0, -0.45, math.pi / 2)
+    layers.mark_points(np.array([-2.0]), np.array([-0.7]))    # a guest right behind
+    nav.request_retreat("test")
+    res = nav.step(1.3, pose)
+    assert nav.recovery is None and (res.v, res.w) == (0.0, 0.0)   # stopped at once, planning again
+    idle, _ = make_nav()
+    idle.request_retreat("no goal")
+    idle.step(0.0, pose)
+    assert idle.retreat_request == ""                       # no goal: nothing to give way for, forgotten
+
+
+def test_after_a_refused_narrow_aisle_the_next_goal_starts_from_its_mouth() -> None:
+    """The café case: a wide robot refused at a 0.45 m aisle stays at its mouth with no room to turn;
+    the next goal, in a 0.75 m aisle farther on, must still be reached (out the way it came)."""
+    from chefbot_navigation.footprint import polygon_footprint
+    res_ = 0.05
+    info = GridInfo(res_, 160, 100, -1.0, -1.0, 0.0)          # 8 m x 5 m
+    data = np.full((100, 160), 100, dtype=np.int8)
+
+    def carve(x0: float, x1: float, y0: float, y1: float) -> None:
+        data[int(round((y0 + 1) / res_)):int(round((y1 + 1) / res_)),
+             int(round((x0 + 1) / res_)):int(round((x1 + 1) / res_))] = 0
+
+    carve(-0.5, 6.5, 1.5, 3.0)                               # the corridor
+    carve(1.775, 2.225, -0.5, 1.5)                           # a 0.45 m aisle
+    carve(3.625, 4.375, -0.5, 1.5)                           # a 0.75 m aisle
+    fp = polygon_footprint([[-0.18, -0.25], [0.18, -0.25], [0.18, 0.25], [-0.18, 0.25]])   # 0.5 m wide
+    layers = LayeredCostmap(OccupancyMap(info, data), CostmapParams(
+        robot_radius=fp.inscribed_radius, circumscribed_radius=fp.circumscribed_radius, inflation_radius=0.55))
+    cp = ControllerParams()
+    ctrl = make_controller("regulated_pure_pursuit", cp)
+    ctrl.set_footprint(fp.samples(0.025))
+    nav = Navigator(NavigatorParams(), cp, make_planner("dijkstra", PlannerParams(), fp.inscribed_radius),
+                    ctrl, layers)
+    nav.set_goal(Goal(2.0, 0.4, -math.pi / 2), 0.0)
+    res, pose, _ = run(nav, Pose2D(0.0, 2.25, 0.0))
+    assert res.outcome == "aborted" and "narrower than the robot" in res.text, res.text
+    nav.set_goal(Goal(4.0, 0.4, -math.pi / 2), 0.0)
+    res, pose, _ = run(nav, pose)
+    assert res.outcome == "succeeded", res.text
+    assert math.hypot(pose.x - 4.0, pose.y - 0.4) <= 0.05
