@@ -127,12 +127,11 @@ def settings() -> dict:
             "use_imu": os.environ.get("CHEFBOT_DEMO_USE_IMU", "true") not in ("0", "false", "")}
 
 
-def drive_robot(robot, run: list[str], tables: dict, results: dict, lock: threading.Lock) -> None:
-    """One robot's route: its tables, then its parking pose (a thread per robot)."""
+def drive_robot(robot, client, run: list[str], tables: dict, results: dict, lock: threading.Lock) -> None:
+    """One robot's route with its ``client`` (delivery.DeliveryClient): its tables, then its parking
+    pose (a thread per robot)."""
     import rospy
-    from delivery import DeliveryClient
 
-    client = DeliveryClient(ns=robot.name)
     try:
         client.wait_ready(120.0)
     except (TimeoutError, rospy.ROSException) as exc:   # the robot's stack did not come up
@@ -198,9 +197,22 @@ def main() -> int:
         rospy.init_node("chefbot_fleet_demo", anonymous=True, disable_signals=True)
         say("waiting for the simulator and every move_base ...")
         lock, results = threading.Lock(), {}
+        # the clients are made here, one after the other: each makes a tf2 Buffer, and the first one
+        # registers the process's ~tf2_frames service -- made in parallel threads, two could both
+        # find it missing and the second registration killed its robot's thread
+        from delivery import DeliveryClient
+        clients = [DeliveryClient(ns=r.name) for r in robots]
         t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
-        threads = [threading.Thread(target=drive_robot, args=(r, run, cfg["tables"], results, lock),
-                                    daemon=True) for r, run in zip(robots, runs, strict=True)]
+        def guarded(robot, *args) -> None:
+            try:
+                drive_robot(robot, *args)
+            except Exception as exc:  # noqa: BLE001 -- one robot's failure is reported, the others go on
+                say(f"[{robot.name}] ERROR: {type(exc).__name__}: {exc}")
+                with lock:
+                    results.setdefault(robot.name, {"error": str(exc), "legs": []})
+
+        threads = [threading.Thread(target=guarded, args=(r, c, run, cfg["tables"], results, lock),
+                                    daemon=True) for r, c, run in zip(robots, clients, runs, strict=True)]
         for t in threads:
             t.start()
         for t in threads:
