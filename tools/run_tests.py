@@ -7,10 +7,12 @@ Runners:
      driver on a pty, map_server ...): side by side, as many at once as the
      machine has cores (CHEFBOT_TEST_JOBS overrides);
   2. the rostests that run in sim time (the test or a launch file it includes
-     mentions ``use_sim_time``: a simulator paced against the wall clock), one
-     at a time; the long ones (a ``time-limit`` over the runner's timeout: the
-     delivery routes, the hotel SLAM workflow, ...) last, once stage 3 has
-     finished, so that they have the machine to themselves;
+     mentions ``use_sim_time``: a simulator paced against the wall clock): one
+     at a time while stage 3 runs beside them, then CHEFBOT_SIM_JOBS (default
+     2) at a time once stage 3 has finished; the long ones (a ``time-limit``
+     over the runner's timeout: the delivery routes, the hotel SLAM workflow,
+     ...) only then, longest first.  The tests judge in sim time, so a
+     simulator slowed by its neighbour only takes longer;
   3. ``make -C firmware test`` with a bounded fuzz run, then pytest over every
      ``*/test/unit`` directory and ``tests/unit``: from the start, one at a
      time at the lowest CPU priority (``nice 19``) beside stages 1 and 2.
@@ -436,6 +438,55 @@ def wall_timeout(test: Path) -> float:
     return max(ROSTEST_TIMEOUT_S, time_limit(test) + 120.0)
 
 
+def sim_jobs() -> int:
+    """CHEFBOT_SIM_JOBS (sim-time rostests side by side once stage 3 is done), default 2; a bad value is said
+    and ignored."""
+    raw = os.environ.get("CHEFBOT_SIM_JOBS", "").strip()
+    try:
+        n = int(raw) if raw else 2
+    except ValueError:
+        n = 0
+    if n < 1:
+        log(f"CHEFBOT_SIM_JOBS={raw!r} is not a whole number >= 1: using 2")
+        n = 2
+    return n
+
+
+def run_sim_stage(tests: list[tuple[str, Path]], retries: Retries, stage3_done: threading.Event,
+                  jobs: int) -> Totals:
+    """Stage 2: the short sim-time rostests one at a time until ``stage3_done``, then ``jobs`` workers take
+    the rest, the long ones (longest ``time-limit`` first) only after stage 3 too."""
+    short = [t for t in tests if not is_long(t[1])]
+    long_ones = sorted((t for t in tests if is_long(t[1])), key=lambda t: -time_limit(t[1]))
+    lock, total = threading.Lock(), Totals()
+
+    def take() -> tuple[str, Path] | None:
+        while True:
+            with lock:
+                if stage3_done.is_set() and long_ones:
+                    return long_ones.pop(0)
+                if short:
+                    return short.pop(0)
+                if not long_ones:
+                    return None
+            stage3_done.wait()
+
+    def worker(first: bool) -> None:
+        if not first:
+            stage3_done.wait()
+        while (item := take()) is not None:
+            t = retries.first(*item)
+            with lock:
+                total.add(t)
+
+    threads = [threading.Thread(target=worker, args=(i == 0,), daemon=True) for i in range(jobs)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    return total
+
+
 def is_long(test: Path) -> bool:
     """A rostest that declares more time than the runner's default timeout (run after stage 3, one at a time)."""
     return time_limit(test) > ROSTEST_TIMEOUT_S
@@ -586,20 +637,31 @@ def main() -> int:
         unit_futures = [background.submit(run_firmware, env, UNIT_NICE)] if firmware else []
         unit_futures += [background.submit(pytest_dir, env, d, args.pattern, UNIT_NICE) for d in dirs]
         dirs, firmware = [], False
+    stage3_done = threading.Event()
+    if unit_futures:
+        remaining = [len(unit_futures)]
+        count_lock = threading.Lock()
+
+        def one_done(_fut) -> None:
+            with count_lock:
+                remaining[0] -= 1
+                if remaining[0] == 0:
+                    log(f"stage 3 is done: sim-time rostests now {sim_jobs()} at a time")
+                    stage3_done.set()
+
+        for fut in unit_futures:
+            fut.add_done_callback(one_done)
+    else:
+        stage3_done.set()
     try:
         total.add(run_side_stage(env, firmware, untimed, dirs, args.pattern, retries))
         if timed:
-            log(f"stage 2: {len(timed)} rostest(s) in sim time, one at a time")
-        long_ones = [t for t in timed if is_long(t[1])]
-        for pkg, test in [t for t in timed if t not in long_ones]:
-            total.add(retries.first(pkg, test))  # one at a time: each paces a simulator against the wall clock
+            n_long = sum(1 for t in timed if is_long(t[1]))
+            log(f"stage 2: {len(timed)} rostest(s) in sim time ({n_long} long), one at a time beside stage 3, "
+                f"then {sim_jobs()} at a time")
+        total.add(run_sim_stage(timed, retries, stage3_done, sim_jobs()))
         for fut in unit_futures:
             total.add(fut.result())
-        if long_ones:
-            log(f"stage 2, the {len(long_ones)} long rostest(s) (time-limit over {ROSTEST_TIMEOUT_S:.0f} s) now that "
-                f"stage 3 is done, one at a time")
-        for pkg, test in long_ones:
-            total.add(retries.first(pkg, test))
         total.add(retries.finish())
     except BaseException:
         abandon(background)

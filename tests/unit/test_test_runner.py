@@ -273,3 +273,45 @@ def test_no_retries_counts_the_first_failure(monkeypatch) -> None:
 def test_retries_setting(monkeypatch, raw: str, runs: int) -> None:
     monkeypatch.setenv("CHEFBOT_TEST_RETRIES", raw)
     assert run_tests.rostest_retries() == runs
+
+
+def test_sim_stage_one_at_a_time_beside_stage_3_then_side_by_side_long_ones_last(monkeypatch, write_test) -> None:
+    """Stage 2: while stage 3 runs, one short sim-time rostest at a time and no long one; after it, two at
+    a time, the long ones (longest first) among them."""
+    import threading
+
+    long_limit = run_tests.ROSTEST_TIMEOUT_S + 600
+    files = {n: write_test(n, f'<test test-name="a" pkg="p" type="t.py" time-limit="{lim:.0f}"/>')
+             for n, lim in (("s1", 60), ("s2", 60), ("s3", 60), ("s4", 60), ("l1", long_limit),
+                            ("l2", long_limit + 100))}
+    stage3 = threading.Event()
+    lock, running, log = threading.Lock(), [0], []
+    both = threading.Barrier(2, timeout=30.0)     # the first two runs after stage 3 must overlap
+
+    def fake(env, pkg, test, run=1):
+        with lock:
+            running[0] += 1
+            log.append((test.stem, running[0], stage3.is_set()))
+            after = sum(1 for e in log if e[2])
+        if 1 <= after <= 2:
+            both.wait()
+        with lock:
+            running[0] -= 1
+            if len(log) == 2:
+                stage3.set()                       # stage 3 ends after two short tests
+        return run_tests.Totals(passed=1)
+
+    monkeypatch.setattr(run_tests, "run_rostest", fake)
+    total = run_tests.run_sim_stage([("p", f) for f in files.values()], run_tests.Retries({}, 0), stage3, 2)
+    assert total.passed == 6
+    before = [e for e in log if not e[2]]
+    assert len(before) == 2 and all(n.startswith("s") and k == 1 for n, k, _ in before)   # one short at a time
+    assert max(k for _, k, _ in log) == 2                                                 # then two side by side
+    longs = [n for n, _, _ in log if n.startswith("l")]
+    assert longs == ["l2", "l1"]                                                 # longest time-limit first
+
+
+@pytest.mark.parametrize("raw, jobs", [("", 2), ("1", 1), ("3", 3), ("x", 2), ("0", 2)])
+def test_sim_jobs_setting(monkeypatch, raw: str, jobs: int) -> None:
+    monkeypatch.setenv("CHEFBOT_SIM_JOBS", raw)
+    assert run_tests.sim_jobs() == jobs
