@@ -9,7 +9,10 @@ move_base's state machine:
   unknown space, off the map or unreachable abort at once, after one
   'clear costmaps' retry (the blocking cells may be stale scan marks).
   Other planner failures -- and a goal that only the sensors' marks block,
-  free on the map -- are retried until ``planner_patience``.
+  free on the map -- are retried until ``planner_patience``.  When another
+  robot of a fleet (the costmap's robots layer) is the only way, the goal is
+  planned through it (its cells cost 252): the robot drives up behind it and
+  waits for it to move on (or for one of the two to be told to give way).
 * CONTROLLING: the local controller follows the plan; the plan is renewed
   at ``planner_frequency`` and at once when an inscribed/lethal cell appears
   on the remaining path within ``path_check_distance``.  A controller that
