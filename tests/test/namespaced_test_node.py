@@ -40,7 +40,8 @@ XY_TOL, YAW_TOL = 0.05, 0.08
 # a barely moved amcl) ended 0.038 m off once; after table_1 it stays within 0.016 m
 DELIVERIES = "table_1 table_4"
 # names a namespaced robot leaves outside its namespace, by design (chefbot_sim README)
-SHARED_TOPICS = {"/tf", "/tf_static", "/clock", "/rosout", "/rosout_agg", "/map", "/map_metadata"}
+# /fleet/robots: the site's shared fleet state (chefbot_msgs/RobotState), which every move_base reads
+SHARED_TOPICS = {"/tf", "/tf_static", "/clock", "/rosout", "/rosout_agg", "/map", "/map_metadata", "/fleet/robots"}
 SHARED_NODES = {"/rosout", "/map_server"}
 SHARED_SERVICES_PREFIXES = ("/rosout/", "/map_server/", "/static_map")
 ROS_PARAMS_PREFIXES = ("/run_id", "/rosdistro", "/rosversion", "/roslaunch/", "/use_sim_time", "/map_server/")
