@@ -153,6 +153,10 @@ class LayeredCostmap:
         marks = self._marks()
         return marks if self.robots_layer is None else marks | self.robots_layer.grid
 
+    def has_marks(self) -> bool:
+        """Has any sensor (scan or point cloud) marked an obstacle?"""
+        return bool(self._marks().any())
+
     def robots_in_view(self) -> bool:
         """Does the robots layer mark any other robot?"""
         return self.robots_layer is not None and bool(self.robots_layer.grid.any())

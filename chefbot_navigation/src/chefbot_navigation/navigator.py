@@ -610,8 +610,9 @@ class Navigator:
                 self.last_valid_plan = t
                 self.controller.set_path(plan.points, self.goal.yaw)
                 self.state = "controlling"
-            elif err.kind in GOAL_ERRORS and not self.cleared_for_goal and bool(self.costmap.obstacles.any()):
-                # the blocking cells may be stale marks from the scan: forget them and retry once
+            elif err.kind in GOAL_ERRORS and not self.cleared_for_goal and self.costmap.has_marks():
+                # the blocking cells may be stale marks of the scan or the point cloud (a robot that
+                # has driven on leaves a trail of them): forget them and retry once
                 self.cleared_for_goal = True
                 self.costmap.clear_obstacles()
                 return self._step(t, pose)
@@ -621,11 +622,12 @@ class Navigator:
                 self.osc_pose, self.osc_time = pose, t
                 self._say(f"waiting: giving way ({self.giving_way_reason})")
                 return StepResult(0.0, 0.0, "planning", text=self.giving_way_reason)
-            elif err.kind in GOAL_ERRORS and not self._blocked_by_sensors(err):
+            elif err.kind in GOAL_ERRORS and not self._blocked_by_sensors(err) and not self.costmap.robots_in_view():
                 return self._finish("aborted", f"Failed to plan: {err.reason}")
             elif self.plan is None or self.need_plan:
                 # (also a goal that only the sensors' marks block -- a guest at the table, a chair pulled
-                # out, a mark made with a late pose: not a bad goal; the current plan is kept meanwhile)
+                # out, a mark made with a late pose: not a bad goal; and any failure while another robot
+                # of the fleet is about, whose marks and body move on; the current plan is kept meanwhile)
                 if t - self.last_valid_plan > self.p.planner_patience:
                     return self._start_recovery(t, pose, f"no valid plan for {self.p.planner_patience:g} s "
                                                          f"({err.reason})")

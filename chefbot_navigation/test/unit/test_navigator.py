@@ -464,3 +464,44 @@ def test_after_a_refused_narrow_aisle_the_next_goal_starts_from_its_mouth() -> N
     res, pose, _ = run(nav, pose)
     assert res.outcome == "succeeded", res.text
     assert math.hypot(pose.x - 4.0, pose.y - 0.4) <= 0.05
+
+
+def test_a_trail_of_marks_behind_a_fleet_robot_is_cleared_not_taken_for_a_wall() -> None:
+    """The café case: the depth camera's point-cloud layer keeps marks where another robot drove through
+    the only aisle; planning through the robot then found no path and the goal was refused at once.
+    The stale marks are cleared (the cloud's too), and while another robot is about a failed plan is
+    retried, not refused."""
+    from chefbot_navigation.pointcloud_layer import CloudLayerParams, PointCloudLayer
+
+    n_x, n_y = 200, 60
+    data = np.zeros((n_y, n_x), dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    data[:, 80:120] = 100
+    data[24:36, 80:120] = 0              # the 0.6 m aisle at y in [-0.3, 0.3], x in [-1, 1]
+    layers = LayeredCostmap(OccupancyMap(GridInfo(0.05, n_x, n_y, -5.0, -1.5, 0.0), data),
+                            CostmapParams(robot_radius=0.2, inflation_radius=0.3))
+    layers.robots_layer = RobotsLayer(layers.info, RobotsLayerParams(footprint_padding=0.0), "chefbot1")
+    layers.cloud_layer = PointCloudLayer(layers.info, CloudLayerParams())
+    row, col = layers.info.world_to_cell(np.array([0.3, 0.5, 0.7]), np.zeros(3))
+    layers.cloud_layer.grid[row, col] = True     # where the other robot was a moment ago
+    cp = ControllerParams()
+    nav = Navigator(NavigatorParams(), cp, make_planner("dijkstra", PlannerParams()),
+                    make_controller("regulated_pure_pursuit", cp), layers)
+    nav.set_goal(Goal(-3.0, 0.0, None), 0.0)
+
+    def hook(t: float, pose: Pose2D) -> None:
+        if t < 6.0:                      # in the aisle, leaving it westwards, slowly
+            layers.robots_layer.update(OtherRobot("chefbot2", t, -0.2 - 0.02 * t, 0.0, math.pi, radius=0.2))
+        else:
+            layers.robots_layer.forget("chefbot2")
+        layers.robots_layer.refresh(t)
+        layers.layers_changed()
+
+    states: list[str] = []
+    say = nav._say
+    nav._say = lambda status: (states.append(status), say(status))       # every status, not just the last
+    res, pose, t = run(nav, Pose2D(3.0, 0.0, math.pi), hook=hook)
+    assert res.outcome == "succeeded", res.text
+    assert not any(s.startswith("recovering") for s in states), states      # cleared at once, no recovery
+    assert not layers.cloud_layer.grid.any()
+    assert math.hypot(pose.x + 3.0, pose.y) <= 0.05
