@@ -31,6 +31,7 @@ from chefbot_common.fleet_file import load_fleet
 from chefbot_common.geometry import Pose2D
 from chefbot_common.rostest_helpers import wait_for
 from chefbot_common.tables import load_tables
+from chefbot_msgs.msg import RobotState
 
 PKG = "chefbot_tests"
 WALL_TIMEOUT = 240.0          # s per goal: a bound for a loaded 2-core machine running two stacks
@@ -133,6 +134,28 @@ class FleetWorldTest(unittest.TestCase):
             start = self.fleet[name].start
             wait_for(lambda r=r, s=start: r.amcl is not None and math.hypot(r.amcl[0] - s.x, r.amcl[1] - s.y)
                      < START_TOL, 60.0, f"{name}'s amcl at its start pose {start}", stop=rospy.is_shutdown)
+
+    def test_2b_each_robot_tells_the_others_where_it_is_on_fleet_robots(self) -> None:
+        """fleet_member's RobotState on /fleet/robots: one per robot, in the map frame, at the robot's
+        localized pose (near its ground truth), with the URDF footprint, idle without a goal."""
+        states: dict[str, RobotState] = {}
+        sub = rospy.Subscriber("/fleet/robots", RobotState, lambda m: states.__setitem__(m.name, m), queue_size=10)
+        try:
+            def near(name: str) -> bool:
+                m, (x, y) = states.get(name), self.robots[name].xy()
+                return m is not None and math.hypot(m.pose.x - x, m.pose.y - y) < START_TOL
+
+            # the pose is the robot's own localization: wait for it to settle, as for amcl above
+            wait_for(lambda: all(near(n) for n in self.robots), 60.0,
+                     "a RobotState from every robot at its ground-truth pose", stop=rospy.is_shutdown)
+            for name in self.robots:
+                m = states[name]
+                self.assertEqual(m.header.frame_id, "map")
+                self.assertGreaterEqual(len(m.footprint), 3, f"{name}'s footprint")
+                self.assertAlmostEqual(m.footprint_radius, 0.21, delta=0.03)   # ChefBot's URDF, unpadded
+                self.assertEqual((m.state, len(m.path)), ("idle", 0))
+        finally:
+            sub.unregister()
 
     def test_3_a_robot_in_the_way_is_an_obstacle_driven_around_without_contact(self) -> None:
         one, two = self.robots["chefbot1"], self.robots["chefbot2"]
