@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -131,14 +132,21 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
              f"fleet_file:={fleet}", f"world:={world}", f"map_file:={map_file}", f"seed:={seed}",
              f"traffic:={'true' if traffic else 'false'}", f"real_time_factor:={rtf}"],
             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    keep = True     # the run's logs stay (printed) unless every robot arrived
     try:
-        return _drive(names, legs, launch, tmp)
+        robots, seconds = _drive(names, legs, launch, tmp)
+        keep = not all(r.arrived for r in robots)
+        return robots, seconds
     finally:
         try:
             os.killpg(launch.pid, 2)
             launch.wait(60)
         except (ProcessLookupError, subprocess.TimeoutExpired):
             os.killpg(launch.pid, 9)
+        if keep:
+            print(f"fleet_scenarios: logs of this run: {tmp}", file=sys.stderr)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _drive(names, legs, launch, tmp: Path) -> tuple[list[RobotResult], float]:
