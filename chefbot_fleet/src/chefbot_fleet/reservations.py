@@ -62,6 +62,14 @@ class ZoneTable:
             return True
         return False
 
+    def withdraw(self, robot: str) -> None:
+        """``robot`` no longer asks for any zone: it leaves every queue (a zone it holds stays its own).
+        A queued robot that stopped asking must not stay at a queue's head and keep a free zone from the
+        robots behind it."""
+        for queue in self.queues.values():
+            if robot in queue:
+                queue.remove(robot)
+
     def release(self, robot: str, now: float) -> int:
         """``robot`` has left its zone (or gives up waiting): frees it and its places in queues; returns
         the zone it held (0: none).  The zone goes to the head of its queue at that robot's next request."""

@@ -113,6 +113,7 @@ class TrafficRule:
                 t.request(robot, inside[0], now)   # in it already: it cannot wait here
             return ""
         if not ahead or held == ahead:
+            t.withdraw(robot)                      # asks for nothing now: out of every queue
             return ""
         if held:               # booked a zone it no longer heads for first: give it back
             t.release(robot, now)

@@ -92,3 +92,15 @@ def test_random_request_orders_never_share_a_zone_never_cycle_and_always_finish(
     else:
         pytest.fail(f"routes not finished after 5000 steps: {routes}")
     assert not t.holder and not t.waiting()
+
+
+def test_a_queued_robot_that_stops_asking_does_not_keep_a_free_zone_from_the_others() -> None:
+    """A robot queued behind a holder that then stops asking (a new plan, no goal) left every queue only
+    on release: once the zone was free, the robot behind it waited for a head that never came."""
+    t = ZoneTable(timeout=10.0)
+    assert t.request("chefbot1", 1, 0.0)
+    assert not t.request("chefbot2", 1, 0.0)          # queued
+    t.withdraw("chefbot2")                            # it no longer heads for zone 1
+    t.release("chefbot1", 1.0)
+    assert t.request("chefbot3", 1, 2.0)              # the free zone goes to whoever asks now
+    assert t.waiting() == {}
