@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from chefbot_navigation.robots_layer import clip_length
+
 
 @dataclass(frozen=True)
 class BlockConfig:
@@ -79,14 +81,7 @@ def in_the_way(a: RobotView, b: RobotView, look_ahead: float, clearance: float) 
     if len(pts) == 0:
         return False
     start = int(np.argmin(np.hypot(pts[:, 0] - a.x, pts[:, 1] - a.y)))
-    pts = np.vstack(([[a.x, a.y]], pts[start:]))
-    seg_len = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.concatenate(([0.0], np.cumsum(seg_len)))
-    k = int(np.searchsorted(cum, look_ahead, side="right"))      # cum[k-1] <= look_ahead < cum[k]
-    ahead = pts[:k]
-    if k < len(pts) and seg_len[k - 1] > 0:                       # the segment reaching look_ahead, cut there
-        f = (look_ahead - cum[k - 1]) / seg_len[k - 1]
-        ahead = np.vstack((ahead, pts[k - 1] + f * (pts[k] - pts[k - 1])))
+    ahead = clip_length(np.vstack(([[a.x, a.y]], pts[start:])), look_ahead)
     # sample the segments every 5 cm so that sparse plans are judged along their length
     seg = np.diff(ahead, axis=0)
     n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / 0.05).astype(int), 1) if len(seg) else []

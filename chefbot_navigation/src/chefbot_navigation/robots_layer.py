@@ -158,7 +158,7 @@ class RobotsLayer:
             x, y, yaw = r.pose_at(now, p.max_extrapolation)
             shape = self._shapes[name]
             self._fill(shape, x, y, yaw)
-            ahead = _clip_length(np.vstack(([[x, y]], np.asarray(r.path, dtype=float).reshape(-1, 2))),
+            ahead = clip_length(np.vstack(([[x, y]], np.asarray(r.path, dtype=float).reshape(-1, 2))),
                                  p.path_horizon)
             if len(ahead) >= 2:
                 width = 2.0 * max(r.radius, shape.circumscribed_radius - p.footprint_padding)
@@ -194,7 +194,7 @@ class RobotsLayer:
         return np.round(uv * (1 << _SHIFT)).astype(np.int32).reshape(-1, 1, 2)
 
 
-def _clip_length(pts: np.ndarray, length: float) -> np.ndarray:
+def clip_length(pts: np.ndarray, length: float) -> np.ndarray:
     """The first ``length`` m of the polyline ``pts`` (K, 2), the last segment cut where it reaches it."""
     if len(pts) < 2 or length <= 0.0:
         return pts[:1] if length <= 0.0 else pts
