@@ -4,8 +4,12 @@ An aisle's width at a point of its centre line is twice the distance from there 
 obstacle.  The centre lines are the free space's medial axis (scikit-image); the distance is
 scipy's Euclidean distance transform.  A centre-line cell is *single-lane* where a robot fits
 (width >= its diameter) but two do not (width < ``two_lane_width``).  Each connected run of
-single-lane centre-line cells is one zone; the zone's area is every free cell whose nearest
-centre-line cell belongs to that run (the aisle's cross-section).  Where a zone's centre line
+single-lane centre-line cells is one zone.  The zone's *area* is where two robots cannot be side by
+side: the free cells a robot's body can reach (covered by a free disc of the robot's radius) but no
+free disc ``two_lane_width`` across covers (a morphological opening of the free space by each disc,
+from distance transforms), in the connected pieces its centre line runs through.  So the area is
+the aisle up to its walls and the narrow part of its mouth, and no further: a robot driving along a
+wider aisle past the mouth does not touch it.  Where a zone's centre line
 meets a wider one is a *mouth*; the zone's *holding point* for that mouth lies on the wide centre
 line, far enough out that a robot waiting there keeps its whole body outside the zone.
 
@@ -124,17 +128,23 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
     fits = width >= 2.0 * cfg.robot_radius
     narrow = skel & fits & (width < cfg.two_lane_width)
     runs, n = ndimage.label(narrow, structure=EIGHT)
-    # every free cell belongs to its nearest centre-line cell
-    _, (near_r, near_c) = ndimage.distance_transform_edt(~skel, return_indices=True)
-    owner = np.where(free, runs[near_r, near_c], 0)
+    # the pieces of single-lane area, each run's pieces, and runs sharing a piece joined
+    pieces, _ = ndimage.label(_single_lane_area(free, dist, res, cfg), structure=EIGHT)
+    piece_runs: dict[int, list[int]] = {}
+    for k in range(1, n + 1):
+        if _line_length(runs == k, res) < cfg.min_length:
+            continue
+        for piece in np.unique(pieces[runs == k]):
+            if piece:
+                piece_runs.setdefault(int(piece), []).append(k)
+    owner = np.where(np.isin(pieces, list(piece_runs)), pieces, 0)
     labels = np.zeros(grid.data.shape, np.int32)
     zones: list[Zone] = []
     wide = skel & fits & ~narrow
     wide_runs, _ = ndimage.label(wide, structure=EIGHT)
     distance: dict[int, np.ndarray] = {}
-    kept = [k for k in range(1, n + 1) if _line_length(runs == k, res) >= cfg.min_length]
-    for group in _merge_close(kept, owner, res, cfg.merge_distance):
-        line = np.isin(runs, group)
+    for group in _merge_close(sorted(piece_runs), owner, res, cfg.merge_distance):
+        line = np.isin(runs, [k for piece in group for k in piece_runs[piece]])
         area = np.isin(owner, group)
         zid = len(zones) + 1
         labels[area] = zid
@@ -145,8 +155,23 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
     return ZoneMap(info, labels, zones, distance)
 
 
+def _single_lane_area(free: np.ndarray, dist: np.ndarray, res: float, cfg: ZoneConfig) -> np.ndarray:
+    """Free cells within reach of a robot's body but of no free disc ``two_lane_width`` across.
+    ``dist``: cells from each cell to the nearest obstacle cell; a disc of radius R (m) centred on a
+    cell is free when (dist - 0.5) * res >= R (as the widths are measured)."""
+
+    def covered(radius: float) -> np.ndarray:
+        centres = (dist - 0.5) * res >= radius
+        if not centres.any():
+            return np.zeros_like(free)
+        return ndimage.distance_transform_edt(~centres) * res <= radius
+
+    return free & covered(cfg.robot_radius) & ~covered(cfg.two_lane_width / 2.0)
+
+
 def _merge_close(runs: list[int], owner: np.ndarray, res: float, within: float) -> list[list[int]]:
-    """Groups of run labels whose areas are closer than ``within`` m (transitively), in label order."""
+    """Groups of area labels (``owner``) closer than ``within`` m to each other (transitively), in label
+    order."""
     parent = {k: k for k in runs}
 
     def find(k: int) -> int:

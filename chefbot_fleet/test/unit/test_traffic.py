@@ -75,7 +75,7 @@ def test_the_waiting_robot_stops_outside_the_zone_at_the_holding_distance() -> N
 def test_a_robot_whose_stack_died_in_the_corridor_loses_its_zone_after_the_timeout() -> None:
     zm = extract_zones(two_rooms(0.6), ZCFG)
     rule = TrafficRule(zm, ZCFG, TrafficConfig(timeout=5.0))
-    plans = {"a": line(1.5, 7.5), "b": line(7.5, 5.6)}      # b only needs to reach the corridor's mouth
+    plans = {"a": line(1.5, 7.5), "b": line(7.5, 5.2)}      # b only needs to enter the corridor's east end
     # a dies after 60 cycles (3 m: inside the corridor); b then waits until a's zone expires
     idx, held, _ = drive(rule, plans, dead={"a": 60})
     assert idx["b"] == len(plans["b"]) - 1

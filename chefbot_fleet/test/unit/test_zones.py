@@ -9,6 +9,7 @@ import pytest
 
 from chefbot_common.grid import GridInfo, OccupancyMap
 from chefbot_common.map_io import load_map
+from chefbot_fleet.traffic import ZoneGeometry
 from chefbot_fleet.zones import ZoneConfig, extract_zones
 
 RES = 0.05
@@ -100,9 +101,13 @@ def test_the_cafe_aisles_are_zones_exactly_where_two_robots_cannot_pass() -> Non
     assert all(north) and len(set(north)) == 1, north
     assert south[0] != north[0]
     assert zm.zone_at(3.5, 2.3) == 0                     # the 2 m corridor
+    geom = ZoneGeometry(zm)
+    for y in (1.55, 3.05):        # a robot driving along the corridor beside the chairs passes the aisles' mouths
+        touched = {x: geom.touching(x, y, CFG.robot_radius) for x in np.arange(0.4, 6.6, 0.05)}
+        assert not any(touched.values()), {round(x, 2): z for x, z in touched.items() if z}
     for z in zm.zones:
         for hx, hy in z.holding_points:
-            assert 1.27 < hy < 3.33 and zm.zone_at(hx, hy) == 0, (z.id, hx, hy)   # waiting in the corridor
+            assert 1.2 < hy < 3.4 and zm.zone_at(hx, hy) == 0, (z.id, hx, hy)     # waiting in the corridor
     info = zm.info
     for a in zm.zones:
         ax, ay = info.cell_to_world(a.cells[:, 0], a.cells[:, 1])
