@@ -9,7 +9,10 @@ scenario by itself in the same site, for the time each robot would take without 
 
 The scenarios (``SCENARIOS``) are the multi-robot issue's: two robots head-on (in a single-lane aisle:
 the café; at a 1.0 m chair pinch: the hotel), two crossing at a junction, three swapping places across
-the room.  Every start and goal is checked to be free on the site's map (0.25 m from any obstacle).
+the room, and a robot parked on another's goal (in the hotel's open room; in the café, at a table in a
+dead-end aisle).  A parked robot gets no goal (its goal is None): the fleet must move it out of the way;
+its result is ``PARKED`` with the distance it moved (``xy_error``) and its bumper contacts.  Every start
+and goal is checked to be free on the site's map (0.25 m from any obstacle).
 
 Used by tests/bench/bench_fleet.py (one process per run: rospy joins one master per process); by hand
 (JSON out; ``--only=I``: robot I's leg alone):
@@ -40,19 +43,22 @@ SITES = {   # world, map (the world's frame)
     "cafe": (WORLDS / "cafe.yaml", MAPS / "cafe_map.yaml"),
 }
 H = math.pi
-#: site -> scenario -> [(start (x, y, yaw), goal (x, y, yaw))], robots chefbot1, chefbot2, ... in order
-SCENARIOS: dict[str, dict[str, list[tuple[tuple[float, float, float], tuple[float, float, float]]]]] = {
+Pose = tuple[float, float, float]
+#: site -> scenario -> [(start (x, y, yaw), goal (x, y, yaw) or None: parked)], robots chefbot1, chefbot2, ... in order
+SCENARIOS: dict[str, dict[str, list[tuple[Pose, Pose | None]]]] = {
     "hotel": {
         "head_on": [((1.4, -1.5, 0.0), (4.6, -1.5, 0.0)), ((4.3, -1.5, H), (1.1, -1.5, H))],      # 1.0 m pinch
         "crossing": [((1.4, -1.5, 0.0), (7.4, -1.5, 0.0)), ((4.4, -4.4, H / 2), (4.4, 1.5, H / 2))],
         "swap3": [((0.0, -1.5, 0.0), (10.5, -1.5, 0.0)), ((10.5, -1.5, H), (0.0, 1.5, H)),
                   ((0.0, 1.5, -H / 2), (0.0, -1.5, -H / 2))],
+        "parked": [((0.0, 1.5, 0.0), (4.4, 1.5, 0.0)), ((4.4, 1.5, H / 2), None)],
     },
     "cafe": {
         "head_on": [((2.025, 0.4, H / 2), (1.0, 2.3, H)), ((3.2, 2.3, H), (2.025, 0.4, -H / 2))],   # aisle s1
         "crossing": [((3.775, 4.2, -H / 2), (3.425, 0.4, -H / 2)), ((1.0, 2.3, 0.0), (6.5, 2.3, 0.0))],
         "swap3": [((0.5, 2.3, 0.0), (6.5, 2.3, 0.0)), ((6.5, 2.3, H), (2.15, 4.2, H / 2)),
                   ((2.15, 4.2, -H / 2), (0.5, 2.3, H))],
+        "parked": [((1.0, 2.3, 0.0), (3.425, 0.4, -H / 2)), ((3.425, 0.4, -H / 2), None)],      # table_s2
     },
 }
 CLEARANCE = 0.25        # m from any obstacle a start or goal must have
@@ -79,6 +85,11 @@ class RobotResult:
         """Reached its goal."""
         return self.state == "SUCCEEDED"
 
+    @property
+    def parked(self) -> bool:
+        """Had no goal (a parked robot; ``xy_error``: how far it moved)."""
+        return self.state == "PARKED"
+
 
 def check_poses(site: str, legs) -> None:
     """ScenarioError naming every start or goal that is not CLEARANCE m clear of the map's obstacles."""
@@ -92,7 +103,10 @@ def check_poses(site: str, legs) -> None:
     dist = ndimage.distance_transform_edt(free) * occ.info.resolution
     bad = []
     for i, (start, goal) in enumerate(legs):
-        for what, (x, y, _) in (("start", start), ("goal", goal)):
+        for what, pose in (("start", start), ("goal", goal)):
+            if pose is None:
+                continue
+            x, y, _ = pose
             r, c = (int(v) for v in occ.info.world_to_cell(x, y))
             ok = occ.info.inside(np.array(r), np.array(c)) and dist[r, c] >= CLEARANCE
             if not ok:
@@ -135,7 +149,7 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
     keep = True     # the run's logs stay (printed) unless every robot arrived
     try:
         robots, seconds = _drive(names, legs, launch, tmp)
-        keep = not all(r.arrived for r in robots)
+        keep = not all(r.arrived or r.parked for r in robots)
         return robots, seconds
     finally:
         try:
@@ -176,13 +190,25 @@ def _drive(names, legs, launch, tmp: Path) -> tuple[list[RobotResult], float]:
         leg = clients[i].deliver(names[i], x, y, yaw, LEG_TIMEOUT_S)
         results[names[i]] = RobotResult(names[i], leg.state, leg.text, leg.seconds, leg.xy_error, leg.bumps)
 
+    def pose_now(c) -> tuple[float, float]:
+        with c._lock:
+            p = c._truth_pose()
+        return p.x, p.y
+
+    parked = {i: (pose_now(clients[i]), clients[i].bumps) for i, (_, goal) in enumerate(legs) if goal is None}
     t0 = rospy.get_time()
-    threads = [threading.Thread(target=go, args=(i,), daemon=True) for i in range(len(names))]
+    threads = [threading.Thread(target=go, args=(i,), daemon=True) for i in range(len(names)) if i not in parked]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    return [results[n] for n in names], rospy.get_time() - t0
+    seconds = rospy.get_time() - t0
+    for i, ((x0, y0), bumps0) in parked.items():
+        x, y = pose_now(clients[i])
+        moved = math.hypot(x - x0, y - y0)
+        results[names[i]] = RobotResult(names[i], "PARKED", f"no goal; moved {moved:.2f} m", 0.0, moved,
+                                        clients[i].bumps - bumps0)
+    return [results[n] for n in names], seconds
 
 
 def run_process(site: str, name: str, seed: int = 0, only: int | None = None) -> tuple[list[RobotResult], float,
@@ -219,7 +245,7 @@ def main() -> int:
         return 2
     print(json.dumps({"site": site, "scenario": name, "seed": seed, "seconds": seconds,
                       "wall_seconds": time.monotonic() - w0, "robots": [r.__dict__ for r in robots]}, indent=1))
-    return 0 if all(r.arrived for r in robots) else 1
+    return 0 if all(r.arrived or r.parked for r in robots) else 1
 
 
 if __name__ == "__main__":

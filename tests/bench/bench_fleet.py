@@ -1,15 +1,15 @@
 """Several robots in one site: the multi-robot issue's scenarios, seeded, against each robot alone.
 
-tools/fleet_scenarios.py runs each scenario (two robots head-on: in the café's single-lane aisle s1,
-at a 1.0 m chair pinch in the hotel; two crossing at a junction; three swapping places across the
-room) with the full stack per robot -- pybullet, amcl, move_base with the robots layer, the traffic
-node -- at real time (``real_time_factor`` 1.0), ``CHEFBOT_FLEET_SEEDS`` times (default 5; quick: 1).
-Each robot's leg is also run once with the robot alone in the site.  Per scenario: arrivals (goal
-all), bumper contacts (goal 0; the simulator's ground truth, a test oracle), robots that did not
-arrive within the leg timeout or aborted (a deadlock shows here), the time each robot lost to the
-others (its time minus its time alone; median and worst over robots and seeds) and the run's
-sim seconds per wall second (three full stacks on two cores may run below real time; every result
-is judged in sim time).
+tools/fleet_scenarios.py runs each scenario (two robots head-on: in the café's single-lane aisle s1, at
+a 1.0 m chair pinch in the hotel; two crossing at a junction; three swapping places across the room; a
+robot parked on another's goal, which the fleet must move) with the full stack per robot -- pybullet,
+amcl, move_base with the robots layer, the traffic node -- at real time (``real_time_factor`` 1.0),
+``CHEFBOT_FLEET_SEEDS`` times (default 5; quick: 1). Each robot's leg is also run once with the robot
+alone in the site. Per scenario: arrivals (goal all), bumper contacts (goal 0; the simulator's ground
+truth, a test oracle), robots that did not arrive within the leg timeout or aborted (a deadlock shows
+here), the time each robot lost to the others (its time minus its time alone; median and worst over
+robots and seeds) and the run's sim seconds per wall second (three full stacks on two cores may run
+below real time; every result is judged in sim time).
 """
 from __future__ import annotations
 
@@ -31,7 +31,10 @@ def run(quick: bool = False) -> list[dict]:
         for name, legs in scenarios.items():
             case = f"{site} {name} ({len(legs)} robots, {seeds} seed{'s' if seeds > 1 else ''})"
             alone = []
-            for i in range(len(legs)):
+            for i, (_, goal) in enumerate(legs):
+                if goal is None:        # a parked robot: nothing to time alone
+                    alone.append(None)
+                    continue
                 robots, _, _ = fs.run_process(site, name, seed=0, only=i)
                 alone.append(robots[0].seconds if robots[0].arrived else None)
             arrived = total = contacts = 0
@@ -40,8 +43,10 @@ def run(quick: bool = False) -> list[dict]:
                 robots, sim_s, wall_s = fs.run_process(site, name, seed=seed)
                 rtfs.append(sim_s / max(wall_s, 1e-9))
                 for r, solo in zip(robots, alone, strict=True):
-                    total += 1
                     contacts += r.bumps
+                    if r.parked:            # no goal: only its contacts count
+                        continue
+                    total += 1
                     if r.arrived:
                         arrived += 1
                         if solo is not None:

@@ -16,6 +16,13 @@ The detector then names one of them to give way: the one listed *later* (a fixed
 robot of a pair always yields and two robots never take turns backing off); it backs off along the way
 it came (move_base's ``~give_way``), and the pair is not judged again for ``cooldown`` s.
 Chains of three or more are resolved pair by pair.
+
+An **idle robot in the way** -- one without a goal, parked on another's path or goal, or inside a
+single-lane zone another robot waits for -- never moves by itself.  When a robot with a goal has
+stood still for ``stall_time`` s with an idle one within the first ``look_ahead`` m of its plan (or
+waits for a zone the idle one holds), the idle one *makes room*: :func:`room_spot` picks the nearest
+free spot it can reach that is outside every zone and clear of every other robot and of their plans,
+and the caller sends it there.
 """
 from __future__ import annotations
 
@@ -24,6 +31,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from chefbot_navigation.robots_layer import clip_length
 
@@ -39,13 +47,17 @@ class BlockConfig:
     clearance: float = 0.10             # m added to the two robots' radii
     cooldown: float = 15.0              # s before the same pair is judged again
     robot_radius: float = 0.22          # m, the robots' circumscribed radius (ChefBot's URDF footprint: 0.223)
+    room_margin: float = 0.10           # m kept free around a make-room spot beyond the robot's radius
+    room_distance: float = 3.0          # m, the farthest make-room spot considered (straight line)
 
     def __post_init__(self) -> None:
-        for name in ("stall_time", "stall_distance", "look_ahead", "cooldown", "robot_radius"):
+        for name in ("stall_time", "stall_distance", "look_ahead", "cooldown", "robot_radius", "room_distance"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not self.clearance >= 0.0:
             raise ValueError(f"clearance must be >= 0 m, got {self.clearance}")
+        if not self.room_margin >= 0.0:
+            raise ValueError(f"room_margin must be >= 0 m, got {self.room_margin}")
 
 
 @dataclass
@@ -62,32 +74,98 @@ class RobotView:
 
 @dataclass(frozen=True)
 class Block:
-    """A resolved mutual block: ``yielder`` gives way to ``other``."""
+    """A resolved block: ``yielder`` gives way to ``other`` (``idle``: the yielder has no goal and makes
+    room, see :func:`room_spot`; otherwise it backs off)."""
 
     yielder: str
     other: str
-    stalled_for: float                  # s both had stood still when it was caught
+    stalled_for: float                  # s both had stood still when it was caught (idle: ``other`` had)
+    idle: bool = False
 
     def text(self) -> str:
         """One line for logs and diagnostics."""
+        if self.idle:
+            return (f"{self.yielder} stands idle in {self.other}'s way ({self.other} stood still "
+                    f"{self.stalled_for:.1f} s): {self.yielder} makes room")
         return (f"{self.yielder} and {self.other} blocked each other for {self.stalled_for:.1f} s: "
                 f"{self.yielder} gives way")
+
+
+def _densify(pts: np.ndarray, step: float = 0.05) -> np.ndarray:
+    """The polyline ``pts`` ((N, 2) m) sampled every ``step`` m along each segment (sparse plans are
+    judged along their length, not only at their vertices)."""
+    seg = np.diff(pts, axis=0)
+    if not len(seg):
+        return pts
+    n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / step).astype(int), 1)
+    return np.vstack([pts[:1]] + [pts[i] + np.linspace(0, 1, k + 1)[1:, None] * seg[i] for i, k in enumerate(n)])
+
+
+def remaining(a: RobotView, look_ahead: float = math.inf) -> np.ndarray:
+    """``a``'s plan from ``a`` on (from its point nearest ``a``), the first ``look_ahead`` m, densified."""
+    pts = np.asarray(a.path, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return np.zeros((0, 2))
+    start = int(np.argmin(np.hypot(pts[:, 0] - a.x, pts[:, 1] - a.y)))
+    ahead = np.vstack(([[a.x, a.y]], pts[start:]))
+    return _densify(clip_length(ahead, look_ahead) if math.isfinite(look_ahead) else ahead)
 
 
 def in_the_way(a: RobotView, b: RobotView, look_ahead: float, clearance: float) -> bool:
     """Does the first ``look_ahead`` m of ``a``'s plan (from the point nearest ``a``) pass within the two
     radii plus ``clearance`` of ``b``?"""
-    pts = np.asarray(a.path, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
+    ahead = remaining(a, look_ahead)
+    if len(ahead) == 0:
         return False
-    start = int(np.argmin(np.hypot(pts[:, 0] - a.x, pts[:, 1] - a.y)))
-    ahead = clip_length(np.vstack(([[a.x, a.y]], pts[start:])), look_ahead)
-    # sample the segments every 5 cm so that sparse plans are judged along their length
-    seg = np.diff(ahead, axis=0)
-    n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / 0.05).astype(int), 1) if len(seg) else []
-    dense = [ahead[:1]] + [ahead[i] + np.linspace(0, 1, k + 1)[1:, None] * seg[i] for i, k in enumerate(n)]
-    dense = np.vstack(dense)
-    return bool(np.min(np.hypot(dense[:, 0] - b.x, dense[:, 1] - b.y)) < a.radius + b.radius + clearance)
+    return bool(np.min(np.hypot(ahead[:, 0] - b.x, ahead[:, 1] - b.y)) < a.radius + b.radius + clearance)
+
+
+def room_spot(clearance: np.ndarray, info, keep_out: np.ndarray | None, me: RobotView, others: list[RobotView],
+              cfg: BlockConfig) -> tuple[float, float] | None:
+    """Where the idle robot ``me`` makes room: the free spot nearest to it (straight line, within
+    ``cfg.room_distance``) that
+
+    * is ``me.radius`` + ``cfg.room_margin`` from the map's obstacles (``clearance``: (H, W) m from each
+      cell to the nearest obstacle; ``info``: the map's GridInfo),
+    * it can reach: connected to it through cells ``me.radius`` from obstacles,
+    * lies outside ``keep_out`` ((H, W) bool, e.g. where it would touch a single-lane zone),
+    * is the two radii + ``cfg.clearance`` + ``cfg.room_margin`` from every other robot and from every
+      point of their remaining plans.
+
+    None when there is no such spot."""
+    res = info.resolution
+    h, w = clearance.shape
+    row, col = (int(v) for v in info.world_to_cell(me.x, me.y))
+    if not (0 <= row < h and 0 <= col < w):
+        return None
+    passable = clearance >= me.radius
+    if not passable.any():
+        return None
+    pieces, _ = ndimage.label(passable, structure=np.ones((3, 3), bool))
+    if not passable[row, col]:     # parked closer to an obstacle than the map's cells resolve: nearest passable
+        _, (rr, cc) = ndimage.distance_transform_edt(~passable, return_indices=True)
+        row, col = int(rr[row, col]), int(cc[row, col])
+    ok = (pieces == pieces[row, col]) & (clearance >= me.radius + cfg.room_margin)
+    if keep_out is not None:
+        ok &= ~keep_out
+    rows, cols = np.indices(clearance.shape)
+    ok &= np.hypot(rows - row, cols - col) * res <= cfg.room_distance
+    for o in others:
+        pts = np.vstack(([[o.x, o.y]], remaining(o)))
+        pr, pc = info.world_to_cell(pts[:, 0], pts[:, 1])
+        pr, pc = np.asarray(pr, int), np.asarray(pc, int)
+        on = (pr >= 0) & (pr < h) & (pc >= 0) & (pc < w)
+        marks = np.zeros(clearance.shape, bool)
+        marks[pr[on], pc[on]] = True
+        if marks.any():
+            ok &= ndimage.distance_transform_edt(~marks) * res >= me.radius + o.radius + cfg.clearance + cfg.room_margin
+    if not ok.any():
+        return None
+    cand = np.argwhere(ok)
+    mx, my = me.x, me.y
+    cx, cy = info.cell_to_world(cand[:, 0], cand[:, 1])
+    best = int(np.argmin(np.hypot(np.asarray(cx) - mx, np.asarray(cy) - my)))
+    return float(np.asarray(cx)[best]), float(np.asarray(cy)[best])
 
 
 class BlockDetector:
@@ -117,9 +195,11 @@ class BlockDetector:
             since = ti
         return t - since
 
-    def update(self, t: float, robots: list[RobotView]) -> list[Block]:
-        """Record the robots' positions at ``t`` (s); the new mutual blocks, each with its yielder (the
-        robot later in ``robots``).  A robot yields at most once per call."""
+    def update(self, t: float, robots: list[RobotView], zone_waits: list[tuple[str, str]] = ()) -> list[Block]:
+        """Record the robots' positions at ``t`` (s); the new blocks: mutual ones, each with its yielder
+        (the robot later in ``robots``), and idle robots in a stalled robot's way (they make room).
+        ``zone_waits``: (waiting robot, holder) of the traffic rule's zones.  A robot yields at most once
+        per call."""
         c = self.cfg
         for r in robots:
             hist = self.history.setdefault(r.name, deque())
@@ -143,6 +223,24 @@ class BlockDetector:
                     block = Block(b.name, a.name, both)
                     blocks.append(block)
                     yielded.add(b.name)
+                    self.resolved[pair] = t
+                    self.last = block
+                    self.count += 1
+        idle = {r.name: r for r in robots if not len(r.path)}
+        waits = {(r, h) for r, h in zone_waits if h in idle}
+        for b in robots:
+            if not len(b.path):
+                continue
+            for a in idle.values():
+                in_way = (not b.held and in_the_way(b, a, c.look_ahead, c.clearance)) or (b.name, a.name) in waits
+                pair = frozenset((a.name, b.name))
+                if not in_way or a.name in yielded or t - self.resolved.get(pair, -math.inf) < c.cooldown:
+                    continue
+                stood = self.stalled_for(b.name, t)
+                if stood >= c.stall_time:
+                    block = Block(a.name, b.name, stood, idle=True)
+                    blocks.append(block)
+                    yielded.add(a.name)
                     self.resolved[pair] = t
                     self.last = block
                     self.count += 1

@@ -94,6 +94,7 @@ class ZoneMap:
     labels: np.ndarray = field(repr=False)         # (H, W) int32
     zones: list[Zone]
     distance: dict[int, np.ndarray] = field(default_factory=dict, repr=False)   # zone id -> (H, W) m to its area
+    clearance: np.ndarray | None = field(default=None, repr=False)   # (H, W) m from each cell to the nearest obstacle
 
     def zone_at(self, x: float, y: float) -> int:
         """The zone id at world (x, y); 0 outside every zone (and outside the map)."""
@@ -101,6 +102,13 @@ class ZoneMap:
         if not (0 <= row < self.labels.shape[0] and 0 <= col < self.labels.shape[1]):
             return 0
         return int(self.labels[row, col])
+
+    def keep_out(self, radius: float) -> np.ndarray:
+        """(H, W) bool: where a robot of ``radius`` m centred there would touch a zone."""
+        out = np.zeros(self.labels.shape, bool)
+        for d in self.distance.values():
+            out |= d <= radius
+        return out
 
     def zones_along(self, xy: np.ndarray) -> list[int]:
         """The zones a path (N, 2 world points) enters, in order, each once per entry."""
@@ -152,7 +160,7 @@ def extract_zones(grid: OccupancyMap, cfg: ZoneConfig | None = None) -> ZoneMap:
         w = width[line]
         zones.append(Zone(zid, np.argwhere(area), float(w.min()), float(w.max()), _line_length(line, res),
                           _holding_points(line, wide_runs, distance[zid], info, cfg)))
-    return ZoneMap(info, labels, zones, distance)
+    return ZoneMap(info, labels, zones, distance, np.maximum(dist - 0.5, 0.0) * res)
 
 
 def _single_lane_area(free: np.ndarray, dist: np.ndarray, res: float, cfg: ZoneConfig) -> np.ndarray:

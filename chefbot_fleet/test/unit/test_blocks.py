@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from chefbot_fleet.blocks import Block, BlockConfig, BlockDetector, RobotView, in_the_way
+from chefbot_common.grid import GridInfo
+from chefbot_fleet.blocks import Block, BlockConfig, BlockDetector, RobotView, in_the_way, room_spot
 
 
 def line(x0: float, x1: float, y: float = 0.0) -> np.ndarray:
@@ -41,7 +42,7 @@ def test_the_order_given_decides_who_yields() -> None:
     assert [b.yielder for b in blocks] == ["chefbot1"]
 
 
-@pytest.mark.parametrize("case", ["moving", "passing lanes", "held", "no goal", "one way only"])
+@pytest.mark.parametrize("case", ["moving", "passing lanes", "held", "one way only"])
 def test_no_block(case: str) -> None:
     det = BlockDetector(BlockConfig())
     out = []
@@ -51,8 +52,6 @@ def test_no_block(case: str) -> None:
             b.x -= 0.05 * t                                        # 5 cm/s
         if case == "passing lanes":
             b.y, b.path = 0.7, line(0.6, -3.0, 0.7)
-        if case == "no goal":
-            b.path = np.zeros((0, 2))
         if case == "one way only":
             b.path = line(0.6, 3.0)                                # b drives away from a: a waits, b is slow
         out += det.update(float(t), [a, b])
@@ -79,7 +78,86 @@ def test_time_jumping_back_and_forgotten_robots_start_afresh() -> None:
 
 
 @pytest.mark.parametrize("bad", [dict(stall_time=0.0), dict(stall_distance=-1.0), dict(look_ahead=0.0),
-                                 dict(clearance=-0.1), dict(cooldown=0.0)])
+                                 dict(clearance=-0.1), dict(cooldown=0.0), dict(room_margin=-0.1),
+                                 dict(room_distance=0.0)])
 def test_bad_config_is_refused(bad: dict) -> None:
     with pytest.raises(ValueError):
         BlockConfig(**bad)
+
+
+def idle_ahead() -> list[RobotView]:
+    """chefbot1 drives east along y = 0; chefbot2 has no goal and stands 0.6 m ahead of it."""
+    return [RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 3.0)), RobotView("chefbot2", 0.6, 0.0, 0.2)]
+
+
+def test_an_idle_robot_in_a_stalled_robots_way_makes_room_after_stall_time() -> None:
+    det = BlockDetector(BlockConfig(stall_time=5.0))
+    assert run(det, idle_ahead(), 0.0, 4.9) == []
+    blocks = run(det, idle_ahead(), 4.9, 5.3)
+    assert [(b.yielder, b.other, b.idle) for b in blocks] == [("chefbot2", "chefbot1", True)]
+    assert "chefbot2 stands idle in chefbot1's way" in blocks[0].text() and "makes room" in blocks[0].text()
+    assert run(det, idle_ahead(), 5.3, 20.0) == []                 # cooldown 15 s
+
+
+@pytest.mark.parametrize("case", ["moving", "beside the plan", "held, no zone wait"])
+def test_no_idle_block(case: str) -> None:
+    det = BlockDetector(BlockConfig())
+    out = []
+    for t in np.arange(0.0, 8.0, 0.1):
+        a, b = idle_ahead()
+        if case == "moving":
+            a.x = 0.05 * t
+        if case == "beside the plan":
+            b.y = 0.7
+        if case == "held, no zone wait":
+            a.held = True
+        out += det.update(float(t), [a, b])
+    assert out == []
+
+
+def test_an_idle_robot_holding_the_zone_another_waits_for_makes_room() -> None:
+    det = BlockDetector(BlockConfig())
+    a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 5.0), held=True)     # waits at the zone's holding point
+    b = RobotView("chefbot2", 4.0, 0.0, 0.2)                                # idle inside the zone, 4 m on
+    assert run(det, [a, b], 0.0, 6.0, ) == []                              # not asked: no zone wait
+    blocks = []
+    for t in np.arange(6.0, 12.0, 0.1):
+        blocks += det.update(float(t), [a, b], zone_waits=[("chefbot1", "chefbot2")])
+    assert [(bl.yielder, bl.other, bl.idle) for bl in blocks] == [("chefbot2", "chefbot1", True)]
+
+
+RES = 0.05
+
+
+def room(free_boxes: list[tuple[float, float, float, float]], size=(8.0, 4.0)) -> tuple[np.ndarray, GridInfo]:
+    """Clearance (m to the nearest obstacle) of a map all obstacle but the free (x0, y0, x1, y1) boxes."""
+    from scipy import ndimage
+    w, h = int(round(size[0] / RES)), int(round(size[1] / RES))
+    free = np.zeros((h, w), bool)
+    for x0, y0, x1, y1 in free_boxes:
+        free[int(round(y0 / RES)):int(round(y1 / RES)), int(round(x0 / RES)):int(round(x1 / RES))] = True
+    return np.maximum(ndimage.distance_transform_edt(free) - 0.5, 0.0) * RES, GridInfo(RES, w, h)
+
+
+def test_room_spot_is_the_nearest_reachable_free_spot_clear_of_the_other_robot_and_its_plan() -> None:
+    clearance, info = room([(0.0, 0.0, 8.0, 2.0), (0.0, 2.5, 8.0, 4.0)])   # two halls, a wall between them
+    cfg = BlockConfig()
+    me = RobotView("idle", 4.0, 1.0, 0.2)
+    other = RobotView("busy", 1.0, 1.0, 0.2, line(1.0, 7.0, 1.0))           # drives along y = 1 through me
+    x, y = room_spot(clearance, info, None, me, [other], cfg)
+    need = 0.2 + 0.2 + cfg.clearance + cfg.room_margin
+    assert abs(y - 1.0) >= need - RES                                        # off the plan ...
+    assert abs(x - 4.0) < RES                                                # ... straight beside it ...
+    assert y < 2.0 - 0.2 - cfg.room_margin + RES                             # ... in its own hall, clear of the wall
+    keep = np.zeros(clearance.shape, bool)
+    keep[:, int(3.0 / RES):int(5.0 / RES)] = True                            # a zone around it: go past it
+    x2, _ = room_spot(clearance, info, keep, me, [other], cfg)
+    assert x2 < 3.0 or x2 >= 5.0
+
+
+def test_no_room_spot_in_a_corridor_the_other_robots_plan_fills() -> None:
+    # a 0.8 m wide corridor, and beyond its 0.1 m north wall a hall it cannot reach
+    clearance, info = room([(0.0, 1.0, 8.0, 1.8), (0.0, 1.9, 8.0, 4.0)])
+    other = RobotView("busy", 1.0, 1.4, 0.2, line(1.0, 7.0, 1.4))
+    assert room_spot(clearance, info, None, RobotView("idle", 4.0, 1.4, 0.2), [other], BlockConfig()) is None
+    assert room_spot(clearance, info, None, RobotView("idle", 40.0, 1.4, 0.2), [other], BlockConfig()) is None

@@ -6,7 +6,8 @@ node does).  The traffic rule is left out, as where it does not apply: a two-lan
 chair (the hotel's 1.06 m pinches, where move_base cannot pass a robot), two robots already inside
 one zone.  At the 0.55 m pinch each robot can only plan through the other and waits behind it;
 without a tie-breaker both wait until their patience runs out.  With it, the later robot backs off
-along the way it came, waits, and both arrive.
+along the way it came, waits, and both arrive.  Likewise a robot parked (no goal) on another's goal:
+the detector sends it to the spot room_spot picks, as the traffic node does, and the other arrives.
 """
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ import numpy as np
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.grid import GridInfo, OccupancyMap
-from chefbot_fleet.blocks import BlockConfig, BlockDetector, RobotView
+from chefbot_fleet.blocks import BlockConfig, BlockDetector, RobotView, room_spot
+from chefbot_fleet.zones import extract_zones
 from chefbot_navigation.controller import ControllerParams, make_controller
 from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
 from chefbot_navigation.navigator import Goal, Navigator, NavigatorParams
@@ -112,4 +114,49 @@ def test_without_the_detector_the_two_robots_do_not_both_arrive() -> None:
     """The case is real: with nobody giving way, the standoff ends only in an abort or the time limit."""
     a, b, _, closest, _ = run_head_on(None, t_max=90.0)
     assert (a.outcome, b.outcome) != ("succeeded", "succeeded")
+    assert closest >= 2 * RADIUS
+
+
+def run_parked(detector: BlockDetector | None, t_max: float = 90.0):
+    """chefbot1 drives to (2.5, 0); chefbot2 stands there without a goal."""
+    occ = corridor_with_a_pinch()
+    zmap = extract_zones(occ)
+    a = Robot("chefbot1", occ, Pose2D(-3.5, 0.0, 0.0))
+    b = Robot("chefbot2", occ, Pose2D(2.5, 0.0, 0.0))
+    a.nav.set_goal(Goal(2.5, 0.0, None), 0.0)
+    b.outcome = "idle"
+    t, closest, spots = 0.0, math.inf, []
+    cfg = BlockConfig(robot_radius=RADIUS)
+    while t < t_max and a.outcome is None:
+        for me, other in ((a, b), (b, a)):
+            me.layers.robots_layer.update(other.state(t))
+            me.layers.robots_layer.refresh(t)
+            me.layers.layers_changed()
+        views = [RobotView(r.name, r.pose.x, r.pose.y, RADIUS, r.state(t).path) for r in (a, b)]
+        for block in detector.update(t, views) if detector is not None else []:
+            assert block.idle and block.yielder == "chefbot2"
+            spot = room_spot(zmap.clearance, occ.info, zmap.keep_out(RADIUS), views[1], views[:1], cfg)
+            spots.append(spot)
+            b.nav.set_goal(Goal(spot[0], spot[1], None), t)
+            b.outcome = None
+        a.step(t)
+        b.step(t)
+        closest = min(closest, a.pose.distance(b.pose))
+        t += DT
+    return a, b, closest, spots
+
+
+def test_a_robot_parked_on_the_goal_makes_room_and_the_other_arrives() -> None:
+    a, b, closest, spots = run_parked(BlockDetector(BlockConfig(robot_radius=RADIUS)))
+    assert a.outcome == "succeeded", a.text
+    assert len(spots) == 1
+    sx, sy = spots[0]
+    assert math.hypot(sx - 2.5, sy) >= 2 * RADIUS + 0.2 - 0.05          # off the goal by two radii + margins
+    assert math.hypot(b.pose.x - sx, b.pose.y - sy) <= 0.1              # and it drove there
+    assert closest >= 2 * RADIUS, f"the robots touched ({closest:.3f} m between centres)"
+
+
+def test_without_making_room_the_robot_does_not_arrive() -> None:
+    a, _, closest, _ = run_parked(None)
+    assert a.outcome != "succeeded"
     assert closest >= 2 * RADIUS
