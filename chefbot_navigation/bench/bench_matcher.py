@@ -2,11 +2,11 @@
 """Scan matcher benchmark: milliseconds per match, branch and bound vs exhaustive coarse search.
 
 Scene: a synthetic 9 x 7 m room with furniture (``chefbot_navigation.slam.synthetic``), the
-likelihood field at the SLAM's defaults (0.05 m cells, sigma 0.07 m, margin window + 1 m, as the
-mapper builds it for every match), two scans: a 360 deg laser (360 beams) and the depth camera's
-~58 deg band (160 beams), the prior off the true pose by most of the window.  Every timed match gets
-a new field (built outside the timer: its time is a row of its own), so the max-pooled grids of the
-branch and bound are paid every time, as in the mapper.
+likelihood field at the SLAM's defaults (``SlamConfig``: 0.05 m cells, sigma 0.05 m; margin window +
+1 m, as the mapper builds it for every match), two scans: a 360 deg laser (360 beams) and the depth
+camera's ~58 deg band (160 beams), the prior off the true pose by most of the window. Every timed
+match gets a new field (built outside the timer: its time is a row of its own), so the max-pooled
+grids of the branch and bound are paid every time, as in the mapper.
 
 Windows (half-widths, ``SlamConfig`` yaw steps): 0.25 m / 0.25 rad (tracking, step 0.0175 rad),
 1.0 m / pi (the widest recovery, step doubled to 0.035 rad), 3.0 m / pi (issue 30; the exhaustive
@@ -32,10 +32,12 @@ sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
 
 from chefbot_common.geometry import Pose2D  # noqa: E402
 from chefbot_navigation.slam import scan_matcher  # noqa: E402
+from chefbot_navigation.slam.mapper import SlamConfig  # noqa: E402
 from chefbot_navigation.slam.scan_matcher import LikelihoodField, SearchWindow, match, match_exhaustive  # noqa: E402
 from chefbot_navigation.slam.synthetic import box_segments, cast  # noqa: E402
 
-RES, SIGMA, BEAMS_PER_DOF = 0.05, 0.07, 30.0          # SlamConfig defaults (delta, sigma, beams_per_dof)
+_DEFAULTS = SlamConfig()
+RES, SIGMA, BEAMS_PER_DOF = _DEFAULTS.delta, _DEFAULTS.sigma, _DEFAULTS.beams_per_dof   # the SLAM's own defaults
 TRUTH = Pose2D(0.6, -0.4, 0.5)
 # name, half-window xy (m), yaw (rad), yaw step (rad), prior sigma (m, rad), prior error (m, m, rad)
 WINDOWS = (("tracking 0.25 m / 0.25 rad", 0.25, 0.25, 0.0175, (0.08, 0.08), (0.12, -0.1, 0.15)),
