@@ -146,10 +146,10 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
              f"fleet_file:={fleet}", f"world:={world}", f"map_file:={map_file}", f"seed:={seed}",
              f"traffic:={'true' if traffic else 'false'}", f"real_time_factor:={rtf}"],
             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    keep = True     # the run's logs stay (printed) unless every robot arrived
+    keep = True     # the run's logs stay (printed) unless every robot arrived (or stayed parked) without contact
     try:
         robots, seconds = _drive(names, legs, launch, tmp)
-        keep = not all(r.arrived or r.parked for r in robots)
+        keep = not all((r.arrived or r.parked) and r.bumps == 0 for r in robots)
         return robots, seconds
     finally:
         try:

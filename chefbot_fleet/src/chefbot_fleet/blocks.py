@@ -23,6 +23,10 @@ stood still for ``stall_time`` s with an idle one within the first ``look_ahead`
 waits for a zone the idle one holds), the idle one *makes room*: :func:`room_spot` picks the nearest
 free spot it can reach that is outside every zone and clear of every other robot and of their plans,
 and the caller sends it there.
+
+A robot **waiting for a zone in the way** -- held by the traffic rule where the robot coming out of
+the zone must pass -- backs off (as a yielder of a mutual block) when that robot has stood still for
+``stall_time`` s with it within the first ``look_ahead`` m of its plan.
 """
 from __future__ import annotations
 
@@ -75,18 +79,22 @@ class RobotView:
 @dataclass(frozen=True)
 class Block:
     """A resolved block: ``yielder`` gives way to ``other`` (``idle``: the yielder has no goal and makes
-    room, see :func:`room_spot`; otherwise it backs off)."""
+    room, see :func:`room_spot`; otherwise it backs off -- ``waiting``: it was waiting for a zone)."""
 
     yielder: str
     other: str
-    stalled_for: float                  # s both had stood still when it was caught (idle: ``other`` had)
+    stalled_for: float                  # s both had stood still when it was caught (idle, waiting: ``other`` had)
     idle: bool = False
+    waiting: bool = False               # the yielder waits for a zone, in the way of ``other``: it backs off
 
     def text(self) -> str:
         """One line for logs and diagnostics."""
         if self.idle:
             return (f"{self.yielder} stands idle in {self.other}'s way ({self.other} stood still "
                     f"{self.stalled_for:.1f} s): {self.yielder} makes room")
+        if self.waiting:
+            return (f"{self.yielder} waits for a zone in {self.other}'s way ({self.other} stood still "
+                    f"{self.stalled_for:.1f} s): {self.yielder} gives way")
         return (f"{self.yielder} and {self.other} blocked each other for {self.stalled_for:.1f} s: "
                 f"{self.yielder} gives way")
 
@@ -223,6 +231,23 @@ class BlockDetector:
                     block = Block(b.name, a.name, both)
                     blocks.append(block)
                     yielded.add(b.name)
+                    self.resolved[pair] = t
+                    self.last = block
+                    self.count += 1
+        # a robot held by the traffic rule (waiting for a zone) standing in the way of a stalled robot --
+        # the one coming out of that zone -- backs off: it is waiting anyway
+        for b in busy:
+            if stalled[b.name] < c.stall_time:
+                continue
+            for a in robots:
+                pair = frozenset((a.name, b.name))
+                if not (a.held and len(a.path)) or a.name in yielded or \
+                        t - self.resolved.get(pair, -math.inf) < c.cooldown:
+                    continue
+                if in_the_way(b, a, c.look_ahead, c.clearance):
+                    block = Block(a.name, b.name, stalled[b.name], waiting=True)
+                    blocks.append(block)
+                    yielded.add(a.name)
                     self.resolved[pair] = t
                     self.last = block
                     self.count += 1

@@ -62,6 +62,28 @@ class ZoneTable:
             return True
         return False
 
+    def take(self, robot: str, zone: int, now: float) -> bool:
+        """``robot`` is inside ``zone`` already: it gets the zone at once when the zone is free, ahead of the
+        robots queued for it (it cannot wait where it is).  False when another robot holds the zone."""
+        self.seen[robot] = now
+        if self.holder.get(zone, robot) != robot:
+            return False
+        if self.held_by(robot) not in (0, zone):
+            raise ReservationError(f"{robot} takes zone {zone} while it holds zone {self.held_by(robot)}")
+        self.holder[zone] = robot
+        for queue in self.queues.values():
+            if robot in queue:
+                queue.remove(robot)
+        return True
+
+    def revoke(self, zone: int) -> str:
+        """Take ``zone`` back from its holder, who has not entered it yet (another robot is inside): the
+        holder goes to the head of the zone's queue.  Returns the former holder ('' when it was free)."""
+        robot = self.holder.pop(zone, "")
+        if robot:
+            self.queues.setdefault(zone, deque()).appendleft(robot)
+        return robot
+
     def withdraw(self, robot: str) -> None:
         """``robot`` no longer asks for any zone: it leaves every queue (a zone it holds stays its own).
         A queued robot that stopped asking must not stay at a queue's head and keep a free zone from the

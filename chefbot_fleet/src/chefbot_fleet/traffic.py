@@ -3,9 +3,14 @@ which single-lane zone it needs, whether it may go on, and what it must be told.
 
 Per robot, each cycle (:meth:`TrafficRule.update`):
 
-1. a robot whose footprint touches a zone is *in* it: it asks for it (granted unless another robot
-   got there first) and drives on — it cannot wait inside;
-2. a zone it holds but neither touches nor has next on its plan is released;
+1. a robot whose footprint touches a zone is *in* it: it takes the zone when it is free, ahead of any
+   queue, and drives on — it cannot wait inside.  A zone granted to a robot that has not entered it
+   yet, while another robot stands inside (a robot parked in the zone, or one whose pose was not yet
+   known when the zone was granted), goes to the robot inside; the one outside waits again;
+2. a zone it holds but neither touches nor has next on its plan is released -- when it has been in
+   it, once its centre is ``hold_distance`` from the zone (the *apron*: as far out as a robot waiting
+   for the zone stands), or at once when its plan asks for another zone.  A robot coming out of an aisle so keeps the
+   aisle until it is out of the mouth, and the robot waiting there does not drive into it;
 3. otherwise the first zone its remaining plan enters within ``lookahead`` m is asked for: granted,
    it drives on; refused, it drives on until its centre is ``hold_distance`` + ``hold_margin`` from
    the zone's area and then waits there (the hold's text names the zone and its holder).
@@ -93,6 +98,8 @@ class TrafficRule:
         self.cfg = cfg or TrafficConfig()
         self.geom = ZoneGeometry(zmap)
         self.table = ZoneTable(timeout=self.cfg.timeout)
+        self.inside: dict[str, list[int]] = {}      # robot -> the zones its footprint touched at its last update
+        self.entered: dict[str, int] = {}           # robot -> the zone it holds and has been inside (coming out)
 
     def update(self, robot: str, pose: Pose2D | None, plan: np.ndarray | None, now: float) -> str:
         """One cycle for ``robot`` at ``pose`` (map frame; None: unknown) following ``plan`` (its remaining
@@ -103,14 +110,24 @@ class TrafficRule:
         t.heartbeat(robot, now)
         r = self.zcfg.robot_radius
         inside = self.geom.touching(pose.x, pose.y, r)
+        self.inside[robot] = inside
         held = t.held_by(robot)
         ahead = self.geom.next_zone(plan, pose.x, pose.y, r, self.cfg.lookahead) if plan is not None else 0
-        if held and held not in inside and held != ahead:
+        if held and held in inside:
+            self.entered[robot] = held
+        if held and held not in inside and held != ahead and \
+                (ahead or self.entered.get(robot) != held or
+                 self.geom.distance(held, pose.x, pose.y) >= self.zcfg.hold_distance):
             t.release(robot, now)
+            self.entered.pop(robot, None)
             held = 0
         if inside:
             if not held:
-                t.request(robot, inside[0], now)   # in it already: it cannot wait here
+                zone = inside[0]
+                holder = t.holder.get(zone)
+                if holder and zone not in self.inside.get(holder, []):
+                    t.revoke(zone)              # granted to a robot still outside it: this one is in it
+                t.take(robot, zone, now)        # in it already: it cannot wait here
             return ""
         if not ahead or held == ahead:
             t.withdraw(robot)                      # asks for nothing now: out of every queue
@@ -125,4 +142,8 @@ class TrafficRule:
 
     def expire(self, now: float) -> list[tuple[str, int]]:
         """Release every robot not heard of for ``timeout`` s: (robot, zone it held)."""
-        return self.table.expire(now)
+        gone = self.table.expire(now)
+        for robot, _ in gone:
+            self.inside.pop(robot, None)
+            self.entered.pop(robot, None)
+        return gone

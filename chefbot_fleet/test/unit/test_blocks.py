@@ -42,12 +42,12 @@ def test_the_order_given_decides_who_yields() -> None:
     assert [b.yielder for b in blocks] == ["chefbot1"]
 
 
-@pytest.mark.parametrize("case", ["moving", "passing lanes", "held", "one way only"])
+@pytest.mark.parametrize("case", ["moving", "passing lanes", "one way only"])
 def test_no_block(case: str) -> None:
     det = BlockDetector(BlockConfig())
     out = []
     for t in np.arange(0.0, 8.0, 0.1):
-        a, b = head_on(held=(case == "held"))
+        a, b = head_on()
         if case == "moving":
             b.x -= 0.05 * t                                        # 5 cm/s
         if case == "passing lanes":
@@ -161,3 +161,16 @@ def test_no_room_spot_in_a_corridor_the_other_robots_plan_fills() -> None:
     other = RobotView("busy", 1.0, 1.4, 0.2, line(1.0, 7.0, 1.4))
     assert room_spot(clearance, info, None, RobotView("idle", 4.0, 1.4, 0.2), [other], BlockConfig()) is None
     assert room_spot(clearance, info, None, RobotView("idle", 40.0, 1.4, 0.2), [other], BlockConfig()) is None
+
+
+def test_a_robot_waiting_for_a_zone_in_the_way_of_one_coming_out_gives_way() -> None:
+    """chefbot1 waits (held) at an aisle's mouth; chefbot2, coming out, has stood still with chefbot1
+    in its way: chefbot1 backs off, whatever the order, and not before stall_time."""
+    det = BlockDetector(BlockConfig(stall_time=5.0))
+    robots = head_on(held=True)
+    assert run(det, robots, 0.0, 4.9) == []
+    blocks = run(det, robots, 4.9, 5.3)
+    assert [(b.yielder, b.other, b.waiting) for b in blocks] == [("chefbot1", "chefbot2", True)]
+    assert "chefbot1 waits for a zone in chefbot2's way" in blocks[0].text()
+    det = BlockDetector(BlockConfig())
+    assert [b.yielder for b in run(det, robots[::-1], 0.0, 6.0)] == ["chefbot1"]

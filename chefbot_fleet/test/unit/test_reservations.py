@@ -104,3 +104,17 @@ def test_a_queued_robot_that_stops_asking_does_not_keep_a_free_zone_from_the_oth
     t.release("chefbot1", 1.0)
     assert t.request("chefbot3", 1, 2.0)              # the free zone goes to whoever asks now
     assert t.waiting() == {}
+
+
+def test_a_robot_inside_takes_a_free_zone_ahead_of_the_queue_and_a_grant_can_be_revoked() -> None:
+    t = ZoneTable()
+    assert t.request("a", 1, 0.0)                     # a booked zone 1 from outside ...
+    assert t.revoke(1) == "a"                         # ... but b is found inside it
+    assert t.holder == {} and list(t.queues[1]) == ["a"]
+    assert t.take("b", 1, 0.1)                        # b takes it ahead of a
+    assert t.holder == {1: "b"}
+    assert not t.request("a", 1, 0.2)                 # a waits, first in the queue
+    assert not t.take("c", 1, 0.3)                    # a held zone is not taken
+    t.release("b", 0.4)
+    assert t.request("a", 1, 0.5)
+    assert t.revoke(2) == ""

@@ -96,3 +96,34 @@ def test_bad_settings_are_named() -> None:
         TrafficConfig(lookahead=0.0)
     with pytest.raises(ValueError, match="timeout"):
         TrafficConfig(timeout=-1.0)
+
+
+def test_a_zone_booked_from_outside_goes_to_a_robot_found_parked_inside_it() -> None:
+    """b's pose is not known yet when a books the corridor; b stands in it without a goal."""
+    zm = extract_zones(two_rooms(0.6), ZCFG)
+    rule = TrafficRule(zm, ZCFG)
+    assert rule.update("a", Pose2D(2.5, 3.0, 0.0), line(2.5, 7.5), 0.0) == ""
+    assert rule.table.held_by("a") == 1
+    assert rule.update("b", Pose2D(4.5, 3.0, 0.0), None, 0.1) == ""        # parked inside: it is the holder now
+    assert rule.table.held_by("b") == 1 and rule.table.held_by("a") == 0
+    assert rule.update("a", Pose2D(2.9, 3.0, 0.0), line(2.9, 7.5), 0.2) == "waiting for zone 1, held by b"
+    # a robot that has entered keeps its zone: b, inside, does not take it from a, inside too
+    rule2 = TrafficRule(zm, ZCFG)
+    rule2.update("a", Pose2D(3.8, 3.0, 0.0), line(3.8, 7.5), 0.0)
+    rule2.update("b", Pose2D(5.0, 3.0, 0.0), None, 0.1)
+    assert rule2.table.held_by("a") == 1
+
+
+def test_a_robot_coming_out_keeps_its_zone_until_it_is_out_of_the_apron() -> None:
+    """a leaves the corridor westwards (no zone ahead): it keeps the zone until its centre is
+    hold_distance from it, so b, waiting at that distance, does not drive into it."""
+    zm = extract_zones(two_rooms(0.6), ZCFG)
+    rule = TrafficRule(zm, ZCFG)
+    rule.update("a", Pose2D(4.5, 3.0, np.pi), line(4.5, 1.0), 0.0)                 # in the corridor
+    assert rule.table.held_by("a") == 1
+    for x in np.arange(4.5, 1.0, -0.05):
+        rule.update("a", Pose2D(float(x), 3.0, np.pi), line(float(x), 1.0), 0.1)
+        d = rule.geom.distance(1, float(x), 3.0)
+        if rule.table.held_by("a") == 0:
+            break
+    assert ZCFG.hold_distance <= d <= ZCFG.hold_distance + 0.06

@@ -239,6 +239,20 @@ def test_initial_pose_reinitialises_and_off_map_is_refused() -> None:
     assert "not finite" in amcl.set_initial_pose(Pose2D(math.nan, 0, 0), np.eye(3))
 
 
+def test_a_robot_started_facing_a_wall_too_close_to_see_is_localized_by_its_initial_pose() -> None:
+    """Every beam below the camera's minimum range: no weighing, but map->odom from the initial pose
+    (without it the robot's tf tree stays broken: move_base and the fleet do not know where it is)."""
+    amcl = Amcl(config())
+    amcl.set_map(ROOM)
+    amcl.set_initial_pose(Pose2D(3.0, 2.5, 1.0), np.diag([0.01, 0.01, 0.001]))
+    odom = Pose2D(0.4, -0.2, 0.3)
+    with pytest.raises(ValueError, match="no valid beam"):
+        amcl.update(odom, np.full(160, 0.3), CAMERA, 0.45, 8.0, LASER, 1.0)
+    assert amcl.map_T_odom is not None
+    here = amcl.map_T_odom.compose(odom)
+    assert math.hypot(here.x - 3.0, here.y - 2.5) < 0.05 and abs(here.yaw - 1.0) < 0.02
+
+
 def test_bad_scans_and_maps_raise_clear_errors() -> None:
     amcl = Amcl(config())
     with pytest.raises(MapError, match="no map"):

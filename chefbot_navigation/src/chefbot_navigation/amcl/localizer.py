@@ -270,6 +270,9 @@ class Amcl:
             if len(endpoints) == 0:   # e.g. the depth camera right at a table: odometry only, the spread grows
                 pose, cov, _ = self.pf.estimate()
                 self.estimate = Estimate(pose, cov, t)
+                # map->odom from the estimate all the same: a robot started facing a wall closer than the
+                # camera's minimum range is localized by its initial pose (and seen by the others)
+                self.map_T_odom = map_to_odom(pose, odom)
                 raise ValueError("scan has no valid beam (all NaN/inf or out of range)")
             through = cfg.laser_through_dist
             before = points_before(endpoints, laser_pose, through) if through > 0 else None
