@@ -205,9 +205,9 @@ class BlockDetector:
 
     def update(self, t: float, robots: list[RobotView], zone_waits: list[tuple[str, str]] = ()) -> list[Block]:
         """Record the robots' positions at ``t`` (s); the new blocks: mutual ones, each with its yielder
-        (the robot later in ``robots``), and idle robots in a stalled robot's way (they make room).
-        ``zone_waits``: (waiting robot, holder) of the traffic rule's zones.  A robot yields at most once
-        per call."""
+        (the robot later in ``robots``), robots waiting for a zone in a stalled robot's way (they back
+        off) and idle robots in a stalled robot's way (they make room).  ``zone_waits``: (waiting robot,
+        holder) of the traffic rule's zones.  A robot yields at most once per call."""
         c = self.cfg
         for r in robots:
             hist = self.history.setdefault(r.name, deque())
@@ -218,39 +218,35 @@ class BlockDetector:
                 hist.popleft()
         busy = [r for r in robots if len(r.path) and not r.held]
         stalled = {r.name: self.stalled_for(r.name, t) for r in busy}
-        blocks, yielded = [], set()
+        blocks: list[Block] = []
+        yielded: set[str] = set()
+
+        def judged(a: RobotView, b: RobotView) -> bool:
+            """May the pair be judged now (not within its cooldown, ``a`` has not yielded in this call)?"""
+            return a.name not in yielded and t - self.resolved.get(frozenset((a.name, b.name)), -math.inf) >= c.cooldown
+
+        def resolve(block: Block) -> None:
+            blocks.append(block)
+            yielded.add(block.yielder)
+            self.resolved[frozenset((block.yielder, block.other))] = t
+            self.last = block
+            self.count += 1
+
+        # two robots with goals, each in the other's way: the later one backs off
         for i, a in enumerate(busy):
             for b in busy[i + 1:]:
-                pair = frozenset((a.name, b.name))
-                if t - self.resolved.get(pair, -math.inf) < c.cooldown or b.name in yielded:
-                    continue
                 both = min(stalled[a.name], stalled[b.name])
-                if both < c.stall_time:
-                    continue
-                if in_the_way(a, b, c.look_ahead, c.clearance) and in_the_way(b, a, c.look_ahead, c.clearance):
-                    block = Block(b.name, a.name, both)
-                    blocks.append(block)
-                    yielded.add(b.name)
-                    self.resolved[pair] = t
-                    self.last = block
-                    self.count += 1
+                if judged(b, a) and both >= c.stall_time and in_the_way(a, b, c.look_ahead, c.clearance) \
+                        and in_the_way(b, a, c.look_ahead, c.clearance):
+                    resolve(Block(b.name, a.name, both))
         # a robot held by the traffic rule (waiting for a zone) standing in the way of a stalled robot --
         # the one coming out of that zone -- backs off: it is waiting anyway
         for b in busy:
-            if stalled[b.name] < c.stall_time:
-                continue
             for a in robots:
-                pair = frozenset((a.name, b.name))
-                if not (a.held and len(a.path)) or a.name in yielded or \
-                        t - self.resolved.get(pair, -math.inf) < c.cooldown:
-                    continue
-                if in_the_way(b, a, c.look_ahead, c.clearance):
-                    block = Block(a.name, b.name, stalled[b.name], waiting=True)
-                    blocks.append(block)
-                    yielded.add(a.name)
-                    self.resolved[pair] = t
-                    self.last = block
-                    self.count += 1
+                if a.held and len(a.path) and judged(a, b) and stalled[b.name] >= c.stall_time \
+                        and in_the_way(b, a, c.look_ahead, c.clearance):
+                    resolve(Block(a.name, b.name, stalled[b.name], waiting=True))
+        # an idle robot in the way of a stalled one, or holding the zone it waits for: it makes room
         idle = {r.name: r for r in robots if not len(r.path)}
         waits = {(r, h) for r, h in zone_waits if h in idle}
         for b in robots:
@@ -258,15 +254,7 @@ class BlockDetector:
                 continue
             for a in idle.values():
                 in_way = (not b.held and in_the_way(b, a, c.look_ahead, c.clearance)) or (b.name, a.name) in waits
-                pair = frozenset((a.name, b.name))
-                if not in_way or a.name in yielded or t - self.resolved.get(pair, -math.inf) < c.cooldown:
-                    continue
                 stood = self.stalled_for(b.name, t)
-                if stood >= c.stall_time:
-                    block = Block(a.name, b.name, stood, idle=True)
-                    blocks.append(block)
-                    yielded.add(a.name)
-                    self.resolved[pair] = t
-                    self.last = block
-                    self.count += 1
+                if in_way and judged(a, b) and stood >= c.stall_time:
+                    resolve(Block(a.name, b.name, stood, idle=True))
         return blocks

@@ -9,8 +9,9 @@ Per robot, each cycle (:meth:`TrafficRule.update`):
    known when the zone was granted), goes to the robot inside; the one outside waits again;
 2. a zone it holds but neither touches nor has next on its plan is released -- when it has been in
    it, once its centre is ``hold_distance`` from the zone (the *apron*: as far out as a robot waiting
-   for the zone stands), or at once when its plan asks for another zone.  A robot coming out of an aisle so keeps the
-   aisle until it is out of the mouth, and the robot waiting there does not drive into it;
+   for the zone stands), or at once when its plan asks for another zone.  A robot coming out of an
+   aisle so keeps the aisle until it is out of the mouth, and the robot waiting there does not drive
+   into it;
 3. otherwise the first zone its remaining plan enters within ``lookahead`` m is asked for: granted,
    it drives on; refused, it drives on until its centre is ``hold_distance`` + ``hold_margin`` from
    the zone's area and then waits there (the hold's text names the zone and its holder).
@@ -122,6 +123,10 @@ class TrafficRule:
             self.entered.pop(robot, None)
             held = 0
         if inside:
+            if held and held not in inside:     # in another zone already (zones closer than merge_distance
+                t.release(robot, now)           # are one, so only with a map or params changed under it)
+                self.entered.pop(robot, None)
+                held = 0
             if not held:
                 zone = inside[0]
                 holder = t.holder.get(zone)
