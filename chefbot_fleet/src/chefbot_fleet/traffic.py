@@ -145,6 +145,11 @@ class TrafficRule:
             return f"waiting for zone {ahead}, held by {t.holder.get(ahead, '?')}"
         return ""
 
+    def keep_out(self) -> np.ndarray:
+        """(H, W) bool: where a robot making room must not stop -- within ``hold_distance`` + ``hold_margin``
+        of any zone: it would still hold the zone it came out of (the apron), or stand where robots wait."""
+        return self.geom.zmap.keep_out(self.zcfg.hold_distance + self.zcfg.hold_margin)
+
     def expire(self, now: float) -> list[tuple[str, int]]:
         """Release every robot not heard of for ``timeout`` s: (robot, zone it held)."""
         gone = self.table.expire(now)

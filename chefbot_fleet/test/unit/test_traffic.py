@@ -127,3 +127,25 @@ def test_a_robot_coming_out_keeps_its_zone_until_it_is_out_of_the_apron() -> Non
         if rule.table.held_by("a") == 0:
             break
     assert ZCFG.hold_distance <= d <= ZCFG.hold_distance + 0.06
+
+
+def test_a_robot_making_room_from_a_zone_stops_where_it_has_released_it() -> None:
+    """b stands idle in the corridor a waits for; the spot it is sent to (room_spot with the rule's
+    keep-out) is past the apron, so b gives the zone up there -- a spot just outside the zone kept it
+    for ever (the robot waiting was told again and again that b stood in its way)."""
+    from chefbot_fleet.blocks import BlockConfig, RobotView, room_spot
+    zm = extract_zones(two_rooms(0.6), ZCFG)
+    rule = TrafficRule(zm, ZCFG)
+    rule.update("b", Pose2D(4.5, 3.0, 0.0), None, 0.0)
+    a_plan = line(2.0, 5.0)
+    assert rule.update("a", Pose2D(2.9, 3.0, 0.0), a_plan, 0.1) == "waiting for zone 1, held by b"
+    me = RobotView("b", 4.5, 3.0, 0.22)
+    a = RobotView("a", 2.9, 3.0, 0.22, a_plan, held=True)
+    x, y = room_spot(zm.clearance, zm.info, rule.keep_out(), me, [a], BlockConfig())
+    assert rule.geom.distance(1, x, y) >= ZCFG.hold_distance + ZCFG.hold_margin - 0.05   # beyond the apron
+    for k, f in enumerate(np.linspace(0.0, 1.0, 60)):                     # b drives there
+        px, py = 4.5 + f * (x - 4.5), 3.0 + f * (y - 3.0)
+        rule.update("b", Pose2D(px, py, 0.0), np.array([[px, py], [x, y]]), 0.2 + 0.1 * k)
+    rule.update("b", Pose2D(x, y, 0.0), None, 99.0)
+    assert rule.table.held_by("b") == 0
+    assert rule.update("a", Pose2D(2.9, 3.0, 0.0), a_plan, 99.1) == ""
