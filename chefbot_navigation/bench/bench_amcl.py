@@ -43,9 +43,13 @@ def amcl_config(**override) -> AmclConfig:
 
 
 class SimRig:
-    """The simulator in the hotel with the wheel noise of sim.yaml, and depth -> scan conversion."""
+    """The simulator with the wheel noise of sim.yaml, and depth -> scan conversion.
 
-    def __init__(self, start: Pose2D, seed: int = 0) -> None:
+    ``world``: a file of chefbot_sim/worlds; ``xacro_args``: the robot model's (e.g. ``{"lidar": "360"}``
+    for a laser frame); ``options``: SimOptions fields over the rig's (e.g. ``lidar_fov=180``)."""
+
+    def __init__(self, start: Pose2D, seed: int = 0, world: str = "hotel.yaml", xacro_args: dict | None = None,
+                 **options) -> None:
         from chefbot_bringup.depth_scan import Intrinsics, ScanConfig
         from chefbot_common.geometry import Pose2D as WorldPose
         from chefbot_description.model import expand_xacro
@@ -53,24 +57,27 @@ class SimRig:
         from chefbot_sim.world import load_world
 
         sp = yaml.safe_load(SIM_PARAMS.read_text())
-        opts = SimOptions(seed=seed, rgb_rate=0.0, depth_fill="none",
-                          **{k: v for k, v in sp.items() if k.startswith("wheel_")})
-        self.sim = Simulator(expand_xacro(), load_world(WORLDS / "hotel.yaml"), WorldPose(start.x, start.y, start.yaw),
-                             opts)
+        opts = SimOptions(**{"seed": seed, "rgb_rate": 0.0, "depth_fill": "none",
+                             **{k: v for k, v in sp.items() if k.startswith("wheel_")}, **options})
+        self.sim = Simulator(expand_xacro(args=xacro_args), load_world(WORLDS / world),
+                             WorldPose(start.x, start.y, start.yaw), opts)
         for kind in ("joint_states", "imu", "ultrasonic", "bumper", "clock"):
             self.sim.set_enabled(kind, False)
         info = self.sim.depth_camera.info()
         self.cam = Intrinsics.from_matrices(info["K"], info["P"], info["width"], info["height"])
         sc = yaml.safe_load(SCAN_PARAMS.read_text())
         self.scan_cfg = ScanConfig(scan_height=sc["scan_height"], range_min=sc["range_min"], range_max=sc["range_max"])
-        # the scan frame (camera_depth_frame) in base_footprint: its offset, yaw 0 as in the URDF
-        # (what the node gets from tf; pybullet's link rotations are those of inertial frames)
-        pos, _ = self.sim.bullet.frame_pose(self.sim.params.depth_camera.depth_frame)
+        self.laser = self.frame_in_base(self.sim.params.depth_camera.depth_frame)
+        self.odom = Pose2D()
+
+    def frame_in_base(self, frame: str) -> Pose2D:
+        """A sensor frame in base_footprint: its offset, yaw 0 as in the URDF (what a node gets from tf;
+        pybullet's link rotations are those of inertial frames)."""
+        pos, _ = self.sim.bullet.frame_pose(frame)
         gt = self.sim.ground_truth()
         c, s = math.cos(gt["yaw"]), math.sin(gt["yaw"])
         dx, dy = pos[0] - gt["x"], pos[1] - gt["y"]
-        self.laser = Pose2D(c * dx + s * dy, -s * dx + c * dy, 0.0)
-        self.odom = Pose2D()
+        return Pose2D(c * dx + s * dy, -s * dx + c * dy, 0.0)
 
     def scan(self, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from chefbot_bringup.depth_scan import depth_to_scan
@@ -80,6 +87,23 @@ class SimRig:
     def truth(self) -> Pose2D:
         g = self.sim.ground_truth()
         return Pose2D(g["x"], g["y"], g["yaw"])
+
+
+def go_to(gt: Pose2D, x: float, y: float, yaw: float | None = None, reach: float = 0.03, v_max: float = 0.35,
+          stop: bool = True) -> tuple[float, float] | None:
+    """A go-to-point controller on ground truth (the benchmarks' test harness, not navigation): (v m/s,
+    w rad/s) towards (x, y) - on the spot while the heading is more than 0.3 rad off - then turning to
+    ``yaw`` (None: any); None once within ``reach`` m (and 0.02 rad).  ``stop``: slow down to stop at the
+    point; else drive through it at ``v_max``."""
+    d = math.hypot(x - gt.x, y - gt.y)
+    head = wrap_angle(math.atan2(y - gt.y, x - gt.x) - gt.yaw)
+    if d > reach:
+        v, w = (0.0, 1.5 * head) if abs(head) > 0.3 else (min(v_max, 0.8 * d) if stop else v_max, 2.0 * head)
+    elif yaw is not None and abs(wrap_angle(yaw - gt.yaw)) > 0.02:
+        v, w = 0.0, 2.0 * wrap_angle(yaw - gt.yaw)
+    else:
+        return None
+    return v, max(-1.0, min(1.0, w))
 
 
 def update_cost(n: int, repeats: int) -> float:
@@ -148,19 +172,14 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
             t_leg = sim.time
             while sim.time - t_leg < 60.0:
                 gt = rig.truth()
-                d = math.hypot(x - gt.x, y - gt.y)
-                head = wrap_angle(math.atan2(y - gt.y, x - gt.x) - gt.yaw)
-                if d > 0.03:
-                    v, w = (0.0, 1.5 * head) if abs(head) > 0.3 else (min(0.35, 0.8 * d), 2.0 * head)
-                elif yaw is not None and abs(wrap_angle(yaw - gt.yaw)) > 0.02:
-                    v, w = 0.0, max(-1.0, min(1.0, 2.0 * wrap_angle(yaw - gt.yaw)))
-                else:
+                cmd = go_to(gt, x, y, yaw)
+                if cmd is None:
                     break
                 if kidnap and kidnapped_at is None and abs(gt.y + 1.5) < 0.05 and 2.5 < gt.x < 3.0 and x > 4.0:
                     sim.teleport(WorldPose(gt.x + 3.0, gt.y, gt.yaw))
                     kidnapped_at = sim.time
                     continue
-                sim.set_cmd_vel(v, max(-1.0, min(1.0, w)))
+                sim.set_cmd_vel(*cmd)
                 for e in sim.step(6):
                     if e.kind == "odom":
                         rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
