@@ -11,8 +11,9 @@ through the two middle aisles, ending where it started) and the corridor (``worl
 table, ending where it started).  Lidars (``LIDARS``): 360 deg / 360 beams (the model's ``lidar:=360``
 unit) and 180 deg / 180 beams (the real logs' kind; the ``lidar:=270`` sector unit's frame).
 
-The route is followed by :func:`bench_amcl.go_to` on ground truth: the test harness, which the SLAM
-never sees.  The same site, lidar and seed give the same recording.
+The route is followed by :func:`bench_amcl.go_to` on ground truth (the test harness, which the SLAM
+never sees), its commands limited to move_base's accelerations.  The same site, lidar and seed give the
+same recording.
 """
 from __future__ import annotations
 
@@ -31,6 +32,12 @@ from bench_amcl import SimRig, go_to
 from chefbot_common.geometry import Pose2D
 
 V_MAX = 0.35          # m/s along the route
+# command rate limits, those of move_base's controller (chefbot_navigation/param/move_base.yaml acc_lim_x,
+# acc_lim_theta): without them the robot goes from 0.35 m/s straight to a 1 rad/s spin at each corner within one
+# 25 ms command and slides on, wheels slipping: the wheel odometry then counted 7-9 deg of turn for 1-2 deg
+ACC_LIM = 0.8         # m/s^2
+ACC_LIM_THETA = 3.0   # rad/s^2
+CONTROL_STEPS = 6     # physics steps (1/240 s) per command: 40 Hz
 PASS_RADIUS = 0.15    # m: a waypoint within this is passed (the last one is stopped at within 0.03 m)
 LEG_SLACK = 30.0      # s a leg may take beyond its length at V_MAX / 2 before the drive counts as stuck
 
@@ -121,6 +128,8 @@ def record(site: str, lidar: str, seed: int = 0, route: tuple[tuple[float, float
         sim.set_enabled(kind, False)
     laser = rig.frame_in_base(sim.lidar.frame)
     odom = truth = None
+    v = w = 0.0
+    dt = CONTROL_STEPS * sim.options.time_step
     rows_t, rows_odom, rows_truth, rows_ranges, rows_leg = [], [], [], [], []
     waypoints = list(route if route is not None else s.route)
     try:
@@ -136,8 +145,10 @@ def record(site: str, lidar: str, seed: int = 0, route: tuple[tuple[float, float
                 if sim.time > limit:
                     raise RuntimeError(f"{site}: leg {k} to ({x}, {y}) not reached by {sim.time:.0f} s sim "
                                        f"(robot at {here.x:.2f}, {here.y:.2f})")
-                sim.set_cmd_vel(*cmd)
-                for e in sim.step(6):
+                v += float(np.clip(cmd[0] - v, -ACC_LIM * dt, ACC_LIM * dt))
+                w += float(np.clip(cmd[1] - w, -ACC_LIM_THETA * dt, ACC_LIM_THETA * dt))
+                sim.set_cmd_vel(v, w)
+                for e in sim.step(CONTROL_STEPS):
                     if e.kind == "odom":
                         odom = (e.stamp, e.data["x"], e.data["y"], e.data["yaw"])
                     elif e.kind == "ground_truth":
