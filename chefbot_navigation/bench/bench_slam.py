@@ -112,7 +112,7 @@ def variants(quick: bool) -> list[tuple[str, tuple[float, float] | None, str, in
     return [(dn, dec, on, noise) for dn, dec in DECIMATIONS for on, noise in odometries]
 
 
-def _filters(dec: tuple[float, float] | None, noise: int | None) -> dict:
+def variant_filters(dec: tuple[float, float] | None, noise: int | None) -> dict:
     """Fresh (stateful) ``run_bag`` filters of a variant (see :func:`variants`)."""
     return {"odom_filter": None if noise is None else OdometryNoise.miscalibrated(seed=noise or None),
             "scan_filter": None if dec is None else Decimate(dec[0], math.radians(dec[1]))}
@@ -128,9 +128,9 @@ def variant_rows(bag: Path, quick: bool, dense_recorded: dict | None = None) -> 
         if dec is None and noise is None and dense_recorded is not None:
             ours = dense_recorded
         else:
-            ours = trajectory_error(bag, SlamConfig(), **_filters(dec, noise))
+            ours = trajectory_error(bag, SlamConfig(), **variant_filters(dec, noise))
             ours["stats"] = ours["slam"].stats
-        before = trajectory_error(bag, before_cfg, **_filters(dec, noise))
+        before = trajectory_error(bag, before_cfg, **variant_filters(dec, noise))
         case = f"hotel route variant: {dec_name}, {odo_name}"
         rows.append(_row(case, "ATE RMS (m)", ours["ate"], f"<= {VARIANT_ATE:.2f}", ours["ate"] <= VARIANT_ATE,
                          round(float(before["ate"]), 4), ref_name))

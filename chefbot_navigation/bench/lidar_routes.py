@@ -67,7 +67,7 @@ SITES = {
                   ((1.5, -4.45), (10.8, -4.45), (10.8, 4.45), (1.5, 4.45), (1.5, 1.5), (10.5, 1.5), (10.5, -1.5),
                    (1.5, -1.5), (0.0, 0.0))),
     # down the corridor on its centre line, a lap round the east room's table, back, a lap round the west
-    # room's table: 71 m
+    # room's table: 70 m
     "corridor": Site("corridor.yaml", Pose2D(0.0, 0.0, 0.0),
                      ((25.0, 0.0), (25.0, -1.5), (28.0, -1.5), (28.0, 1.6), (25.0, 1.6), (25.0, 0.0), (0.0, 0.0),
                       (0.0, 2.1), (-2.4, 2.1), (-2.4, 0.0), (0.0, 0.0))),
