@@ -78,6 +78,39 @@ def test_branch_and_bound_equals_exhaustive_on_random_scenes(seed):
                 match_exhaustive(field, pts, prior, window, prior_sigma, bpd))
 
 
+@pytest.mark.parametrize("seed", range(40, 60))
+def test_branch_and_bound_equals_exhaustive_with_a_capped_prior(seed):
+    """The capped (robust) prior keeps the bound valid: its penalty never falls with the distance."""
+    rng = np.random.default_rng(seed)
+    field, pts, prior, window, _, bpd = random_case(rng)
+    sigma, cap = (float(rng.uniform(0.02, 0.3)), float(rng.uniform(0.02, 0.3))), float(rng.uniform(0.5, 8.0))
+    co = scan_matcher._coarse(field, pts, prior, window)
+    rank = scan_matcher._Ranking(field.res, co.dths, window, len(pts), sigma, bpd, cap)
+    bnb, exh = scan_matcher._search_bnb(field, co, rank), scan_matcher._search_exhaustive(field, co, rank)
+    assert bnb[:3] == exh[:3]
+    assert_same(match(field, pts, prior, window, sigma, bpd, cap), match_exhaustive(field, pts, prior, window, sigma,
+                                                                                     bpd, cap))
+
+
+def test_a_capped_prior_believes_a_scan_that_fits_far_better_after_a_slip():
+    """The odometry says the robot turned 8 deg more than it did (wheels slipping in a spin) and is sure to
+    1.5 deg: the Gaussian prior keeps the match near the odometry's heading; capped at 4.5 nats (3 sigma),
+    the scan that fits far better wins.  A prediction that is right stays right either way."""
+    truth = Pose2D(-0.6, 0.4, 0.7)
+    walls, pts = room_scan(truth)
+    field = LikelihoodField(walls, 0.05, 0.05)
+    window = SearchWindow(0.25, 0.25, 0.0175)
+    sigma = (0.03, math.radians(1.5))
+    slipped = Pose2D(truth.x, truth.y, truth.yaw + math.radians(8.0))
+    gauss = match(field, pts, slipped, window, sigma, 30.0)
+    robust = match(field, pts, slipped, window, sigma, 30.0, 4.5)
+    assert abs(gauss.pose.yaw - truth.yaw) > math.radians(3.0)
+    assert abs(robust.pose.yaw - truth.yaw) < math.radians(0.5) and robust.pose.distance(truth) < 0.05
+    right = Pose2D(truth.x + 0.01, truth.y, truth.yaw + math.radians(0.5))
+    a, b = match(field, pts, right, window, sigma, 30.0), match(field, pts, right, window, sigma, 30.0, 4.5)
+    assert a.pose.distance(b.pose) < 1e-9 and abs(a.pose.yaw - b.pose.yaw) < 1e-9
+
+
 def room_scan(pose: Pose2D, n: int = 180) -> tuple[np.ndarray, np.ndarray]:
     """Obstacle points of a 6 x 4 m room with a pillar, and the beam ends seen from ``pose`` (base frame)."""
     from chefbot_navigation.slam.synthetic import box_segments, cast

@@ -129,6 +129,9 @@ class SlamConfig:
     drift_deadband: float = 0.0087       # [rad/m] a learned heading drift within +- this (0.5 deg/m) is not applied
     calibration_max_spread: float = 0.05  # m; a match less sure than this (along a wall) teaches nothing (> 0)
     beams_per_dof: float = 30.0          # neighbouring beams that count as one independent measurement
+    motion_prior_cap: float = 3.0        # [nats] tracking: the odometry prior's penalty stops growing here (~2.4
+    #                                      sigma; robust: a scan fitting clearly better after the wheels slipped in a
+    #                                      turn wins; inf = Gaussian; > 0)
     sigma_xy_min: float = 0.03           # m, least std-dev of the odometry prior
     sigma_yaw_min: float = 0.02          # [rad] least yaw std-dev of the odometry prior (> 0)
     max_xy: float = 1.0                  # m, largest search half-window after blind motion
@@ -208,6 +211,8 @@ class SlamConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if not (isinstance(self.motion_prior_cap, (int, float)) and self.motion_prior_cap > 0):
+            raise ValueError(f"motion_prior_cap must be a number > 0 (inf: no cap), got {self.motion_prior_cap!r}")
         for name in ("linearUpdate", "angularUpdate", "maxRange", "loop_min_travel", "footprint_radius", "srr", "srt",
                      "str", "stt", "local_radius", "distance_scale_deadband", "drift_deadband", "blind_slip",
                      "contact_radius", "imu_slip_yaw", "bumper_hold_after", "loop_drift_xy", "loop_drift_yaw"):
@@ -505,7 +510,7 @@ class Slam:
             return predicted, False, math.inf
         step = c.match_yaw_step * (2 if wyaw > 2 * c.match_yaw else 1)
         fld = LikelihoodField(np.vstack(ref), c.delta, c.sigma, margin=wxy + 1.0)
-        res = match(fld, hits, predicted, SearchWindow(wxy, wyaw, step), sigma, c.beams_per_dof)
+        res = match(fld, hits, predicted, SearchWindow(wxy, wyaw, step), sigma, c.beams_per_dof, c.motion_prior_cap)
         self.stats.last_score = res.score
         if res.score < c.min_match_score + frac * (c.recovery_accept - c.min_match_score):
             return predicted, False, math.inf

@@ -172,7 +172,8 @@ def _coarse(field: LikelihoodField, pts: np.ndarray, prior: Pose2D, window: Sear
 
 
 def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
-          prior_sigma: tuple[float, float] | None = None, beams_per_dof: float = 10.0) -> MatchResult:
+          prior_sigma: tuple[float, float] | None = None, beams_per_dof: float = 10.0,
+          prior_cap: float = math.inf) -> MatchResult:
     """Pose of the robot that best explains ``points`` (N, 2) m given in its base frame.
 
     Searches ``window`` around ``prior`` (pose of the base in the field's frame).
@@ -181,25 +182,31 @@ def match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: Sea
     ``(beams / beams_per_dof) * log(score) - mahalanobis^2 / 2`` (neighbouring
     beams are far from independent: ``beams_per_dof`` of them count as one
     measurement), so a scan that cannot tell along a wall keeps the odometry
-    there.  None: a flat prior with a 5 % tie-break towards it.
+    there.  None: a flat prior with a 5 % tie-break towards it.  ``prior_cap``: the
+    prior's penalty stops growing at this many nats (a robust, truncated
+    quadratic): a scan that fits clearly better far from the odometry -- after
+    the wheels slipped in a turn -- is believed, while near the prediction the
+    prior is the Gaussian one.
 
     The coarse search is a branch and bound (see the module docstring); its result is the
     exhaustive one of :func:`match_exhaustive`, which it falls back to for small windows.
     """
-    return _match(field, points, prior, window, prior_sigma, beams_per_dof, exhaustive=False)
+    return _match(field, points, prior, window, prior_sigma, beams_per_dof, prior_cap, exhaustive=False)
 
 
 def match_exhaustive(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
-                     prior_sigma: tuple[float, float] | None = None, beams_per_dof: float = 10.0) -> MatchResult:
+                     prior_sigma: tuple[float, float] | None = None, beams_per_dof: float = 10.0,
+                     prior_cap: float = math.inf) -> MatchResult:
     """:func:`match` scoring every coarse candidate at once: one index array of shape (angles, dy, dx, beams).
 
     The reference for the branch and bound (tests, benchmark); its memory grows with the window.
     """
-    return _match(field, points, prior, window, prior_sigma, beams_per_dof, exhaustive=True)
+    return _match(field, points, prior, window, prior_sigma, beams_per_dof, prior_cap, exhaustive=True)
 
 
 def _match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: SearchWindow,
-           prior_sigma: tuple[float, float] | None, beams_per_dof: float, exhaustive: bool) -> MatchResult:
+           prior_sigma: tuple[float, float] | None, beams_per_dof: float, prior_cap: float,
+           exhaustive: bool) -> MatchResult:
     """:func:`match` (``exhaustive``: always the exhaustive coarse search, else the faster of the two)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
@@ -207,19 +214,21 @@ def _match(field: LikelihoodField, points: np.ndarray, prior: Pose2D, window: Se
     co = _coarse(field, pts, prior, window)
     small = len(co.dths) * len(co.offs) ** 2 * len(pts) < EXHAUSTIVE_BELOW
     search = _search_exhaustive if exhaustive or small else _search_bnb
-    t, iy, ix, spread = search(field, co, _Ranking(field.res, co.dths, window, len(pts), prior_sigma, beams_per_dof))
-    return _finish(field, pts, prior, window, co, (t, iy, ix), spread, prior_sigma, beams_per_dof)
+    rank = _Ranking(field.res, co.dths, window, len(pts), prior_sigma, beams_per_dof, prior_cap)
+    t, iy, ix, spread = search(field, co, rank)
+    return _finish(field, pts, prior, window, co, (t, iy, ix), spread, prior_sigma, beams_per_dof, prior_cap)
 
 
 def _finish(field: LikelihoodField, pts: np.ndarray, prior: Pose2D, window: SearchWindow, co: _Coarse,
             best: tuple[int, int, int], spread: float, prior_sigma: tuple[float, float] | None,
-            beams_per_dof: float) -> MatchResult:
+            beams_per_dof: float, prior_cap: float) -> MatchResult:
     """Two sub-cell refinements around the coarse best (angle index, row offset index, column offset index)."""
     res = field.res
     t, iy, ix = best
     pose = Pose2D(prior.x + co.offs[ix] * res, prior.y + co.offs[iy] * res, wrap_angle(co.th[t]))
-    fine = refine(field, pts, pose, res / 2.0, window.yaw_step / 2.0, prior, prior_sigma, beams_per_dof)
-    fine = refine(field, pts, fine.pose, res / 8.0, window.yaw_step / 8.0, prior, prior_sigma, beams_per_dof)
+    fine = refine(field, pts, pose, res / 2.0, window.yaw_step / 2.0, prior, prior_sigma, beams_per_dof, prior_cap)
+    fine = refine(field, pts, fine.pose, res / 8.0, window.yaw_step / 8.0, prior, prior_sigma, beams_per_dof,
+                  prior_cap)
     fine.spread = spread
     last = len(co.offs) - 1
     fine.on_border = bool((co.n_th > 0 and t in (0, len(co.dths) - 1))
@@ -236,8 +245,8 @@ class _Ranking:
     """
 
     def __init__(self, res: float, dths: np.ndarray, window: SearchWindow, beams: int,
-                 prior_sigma: tuple[float, float] | None, beams_per_dof: float) -> None:
-        self.res, self.dths, self.beams, self.bpd = res, dths, beams, beams_per_dof
+                 prior_sigma: tuple[float, float] | None, beams_per_dof: float, prior_cap: float = math.inf) -> None:
+        self.res, self.dths, self.beams, self.bpd, self.cap = res, dths, beams, beams_per_dof, prior_cap
         self.xy, self.yaw = window.xy, window.yaw
         self.prior_sigma = prior_sigma
         # float32 log is not guaranteed monotonic to the last bit: the log-posterior bound gets a margin
@@ -249,7 +258,7 @@ class _Ranking:
         d2 = (oy ** 2 + ox ** 2) * self.res ** 2                 # m^2
         if self.prior_sigma is not None:
             sxy, sth = self.prior_sigma
-            return _posterior(raw, self.beams, d2 / sxy ** 2 + (self.dths[t] / sth) ** 2, self.bpd)
+            return _posterior(raw, self.beams, d2 / sxy ** 2 + (self.dths[t] / sth) ** 2, self.bpd, self.cap)
         flat = d2 / max(self.xy, self.res) ** 2 + (self.dths[t] / max(self.yaw, 1e-9)) ** 2
         return raw * (1.0 - 0.05 * flat)
 
@@ -261,7 +270,8 @@ class _Ranking:
         ny = np.where(oy0 > 0, oy0, np.where(oy1 < 0, oy1, 0))
         nx = np.where(ox0 > 0, ox0, np.where(ox1 < 0, ox1, 0))
         if self.prior_sigma is not None:
-            # log is increasing: k log(max(ub, 1e-4)) >= k log(max(score, 1e-4)) for every candidate
+            # log is increasing: k log(max(ub, 1e-4)) >= k log(max(score, 1e-4)) for every candidate, and the
+            # (capped) penalty never falls with the mahalanobis distance: the nearest offset has the least
             return self.leaf(t, ny, nx, ub) + self.slack
         d2 = (ny ** 2 + nx ** 2) * self.res ** 2
         factor = 1.0 - 0.05 * (d2 / max(self.xy, self.res) ** 2 + (self.dths[t] / max(self.yaw, 1e-9)) ** 2)
@@ -406,9 +416,10 @@ def _search_bnb(field: LikelihoodField, co: _Coarse, rank: _Ranking) -> tuple[in
     return bt, rest // d, rest % d, spread
 
 
-def _posterior(score: np.ndarray, beams: int, mahalanobis2: np.ndarray, beams_per_dof: float) -> np.ndarray:
-    """Log-posterior of candidate poses: independent-measurement count * log(score) - m^2 / 2."""
-    return (beams / beams_per_dof) * np.log(np.maximum(score, 1e-4)) - 0.5 * mahalanobis2
+def _posterior(score: np.ndarray, beams: int, mahalanobis2: np.ndarray, beams_per_dof: float,
+               prior_cap: float = math.inf) -> np.ndarray:
+    """Log-posterior of candidate poses: independent-measurement count * log(score) - min(m^2 / 2, cap)."""
+    return (beams / beams_per_dof) * np.log(np.maximum(score, 1e-4)) - np.minimum(0.5 * mahalanobis2, prior_cap)
 
 
 def _spread(score: np.ndarray, offs: np.ndarray) -> float:
@@ -428,9 +439,9 @@ def _spread_of(x: np.ndarray, y: np.ndarray) -> float:
 
 def refine(field: LikelihoodField, pts: np.ndarray, start: Pose2D, xy: float, yaw: float,
            prior: Pose2D | None = None, prior_sigma: tuple[float, float] | None = None,
-           beams_per_dof: float = 10.0) -> MatchResult:
+           beams_per_dof: float = 10.0, prior_cap: float = math.inf) -> MatchResult:
     """Search of +-``xy`` m (5 steps) and +-``yaw`` rad (11 steps) around ``start``, bilinear scores,
-    times the Gaussian prior around ``prior`` if ``prior_sigma`` is given."""
+    times the Gaussian prior (capped at ``prior_cap`` nats) around ``prior`` if ``prior_sigma`` is given."""
     offs = np.linspace(-xy, xy, 5)
     dths = np.linspace(-yaw, yaw, 11)
     th = start.yaw + dths
@@ -447,7 +458,7 @@ def refine(field: LikelihoodField, pts: np.ndarray, start: Pose2D, xy: float, ya
         ey = start.y + offs - prior.y
         eth = np.angle(np.exp(1j * (th - prior.yaw)))
         m2 = (ex[None, None, :] ** 2 + ey[None, :, None] ** 2) / sxy ** 2 + (eth[:, None, None] / sth) ** 2
-        sc = _posterior(sc, len(pts), m2, beams_per_dof)
+        sc = _posterior(sc, len(pts), m2, beams_per_dof, prior_cap)
     t, iy, ix = np.unravel_index(int(np.argmax(sc)), sc.shape)
     pose = Pose2D(start.x + offs[ix], start.y + offs[iy], wrap_angle(th[t]))
     return MatchResult(pose, float(raw[t, iy, ix]), len(pts))
