@@ -3,10 +3,12 @@
 
 Inputs: routes driven in the pybullet simulator without ROS (lidar_routes.py): the hotel (58 m round the
 tables and back through the middle aisles) and ``worlds/corridor.yaml`` (22 m of corridor between two
-rooms, there and back, a lap round a table in each room: 70 m), each with a 360 deg / 360-beam lidar
-and a 180 deg / 180-beam one (the real logs' kind), 10 Hz, 12 m, 0.01 m range noise; the simulator's
-wheel odometry (the noisy wheel model of chefbot_sim/param/sim.yaml) and ground truth at every scan;
-simulator seed 0.  The recordings are made at the start of a run (``--cache DIR`` keeps them).
+rooms, there and back, a lap round a table in each room: 70 m), with a 180 deg / 180-beam lidar (the real
+logs' kind; ``--lidars 360`` adds a 360 deg / 360-beam one), 10 Hz, 12 m, 0.01 m range noise; each route
+driven smoothly (move_base's accelerations) and carelessly (``DRIVES``: no acceleration limits, the
+wheels slipping in the turns); the simulator's wheel odometry (the noisy wheel model of
+chefbot_sim/param/sim.yaml) and ground truth at every scan; simulator seed 0.  The recordings are made
+at the start of a run (``--cache DIR`` keeps them).
 
 Each scan goes to the SLAM core (``chefbot_navigation.slam.mapper.Slam``) as ``ros_slam_bag.run_bag``
 gives it: the scan filter sees the recorded odometry, the odometry filter the kept scans in order, the
@@ -18,15 +20,15 @@ recorded odometry (``Decimate``) x the recorded odometry / a miscalibrated one (
 1.5 deg/m heading drift: ``OdometryNoise.miscalibrated()``) / that plus random noise (seeds 1-5): 21
 per site and lidar.  Each runs with ``SlamConfig()`` (ours) and with
 ``SlamConfig(odometry_calibration=False)`` (the reference, "before"); the odometry bias the SLAM
-learned goes to stderr.  ``--quick``: the 180 deg lidar only, three variants (dense recorded, 0.7 m
-miscalibrated, 1.1 m miscalibrated + noise seed 1).
+learned goes to stderr.  ``--quick``: three variants (dense recorded, 0.7 m miscalibrated, 1.1 m
+miscalibrated + noise seed 1).
 
 ATE: position error of every scan given to the SLAM after the best rigid fit of the whole trajectory
 to the truth (``metrics.aligned_errors``), RMS and max.  Goals (issue 30): on every variant ATE <= 0.10 m
 RMS and <= 0.30 m max.
 
     python chefbot_navigation/bench/bench_slam_lidar.py [--quick] [--sites hotel corridor] [--lidars 180 360]
-        [-k SUBSTRING] [--cache DIR] [--json FILE] [--profile]
+        [--drives smooth careless] [-k SUBSTRING] [--cache DIR] [--json FILE] [--profile]
 """
 from __future__ import annotations
 
@@ -60,6 +62,9 @@ from chefbot_navigation.slam.metrics import aligned_errors  # noqa: E402
 from chefbot_navigation.slam.scan import ScanError, scan_from_ranges  # noqa: E402
 
 SEED = 0             # the simulator's noise seed of the recordings
+#: drive -> careless (lidar_routes.record): 'smooth' at move_base's accelerations; 'careless' without limits, the
+#: wheels slipping in the turns (the wheel odometry counts 7-9 deg of a corner for 1-2 deg turned)
+DRIVES = {"smooth": False, "careless": True}
 
 
 def run_slam(rec: Recording, cfg: SlamConfig, odom_filter: Callable[[float, Pose2D], Pose2D] | None = None,
@@ -104,12 +109,12 @@ def lidar_variants(quick: bool) -> list[tuple[str, tuple[float, float] | None, s
             (*DECIMATIONS[2], "miscalibrated odometry + noise seed 1", 1)]
 
 
-def recording(site: str, lidar: str, cache: Path | None = None) -> Recording:
-    """The site's drive with the lidar (from ``cache`` if it holds it; then saved there)."""
-    path = cache / f"{site}_lidar{lidar}_seed{SEED}.npz" if cache is not None else None
+def recording(site: str, lidar: str, cache: Path | None = None, drive: str = "smooth") -> Recording:
+    """The site's drive (``DRIVES``) with the lidar (from ``cache`` if it holds it; then saved there)."""
+    path = cache / f"{site}_lidar{lidar}_{drive}_seed{SEED}.npz" if cache is not None else None
     if path is not None and path.is_file():
         return Recording.load(path)
-    rec = record(site, lidar, SEED)
+    rec = record(site, lidar, SEED, careless=DRIVES[drive])
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         rec.save(path)
@@ -139,38 +144,36 @@ def _row(case: str, metric: str, ours: float, goal: str | None, met: bool | None
     return row
 
 
-def run(quick: bool = False, sites: tuple[str, ...] = tuple(SITES), lidars: tuple[str, ...] | None = None,
-        pattern: str | None = None, cache: Path | None = None) -> list[dict]:
+def run(quick: bool = False, sites: tuple[str, ...] = tuple(SITES), lidars: tuple[str, ...] = ("180",),
+        pattern: str | None = None, cache: Path | None = None, drives: tuple[str, ...] = tuple(DRIVES)) -> list[dict]:
     """Benchmark rows (see tools/bench.py); ``pattern``: only the variants whose name holds it."""
-    lidars = lidars or (("180",) if quick else ("180", "360"))
     rows: list[dict] = []
     ref_name = "without odometry calibration"
-    for site in sites:
-        for lidar in lidars:
-            rec = recording(site, lidar, cache)
-            lid = LIDARS[lidar]
-            head = f"{site} {rec.length:.0f} m, lidar {lid.fov:.0f} deg / {lid.beams} beams"
-            rows.append(_row(f"{head}: recording ({rec.t[-1]:.0f} s sim, {len(rec.t)} scans)",
-                             "recording wall time (s)", rec.wall_s, None, None))
-            for dec_name, dec, odo_name, noise in lidar_variants(quick):
-                name = f"{dec_name}, {odo_name}"
-                if pattern and pattern not in name:
-                    continue
-                ours = run_slam(rec, SlamConfig(), **variant_filters(dec, noise))
-                before = run_slam(rec, calibration_off(), **variant_filters(dec, noise))
-                case = f"{head}, variant: {name}"
-                bias = learned_bias(ours["stats"])
-                info = {"learned": bias, "loops": ours["stats"].loop_closures,
-                        "loops_before": before["stats"].loop_closures, "where": where(rec, ours),
-                        "where_before": where(rec, before), "slam_wall_s": round(ours["wall_s"] + before["wall_s"], 1)}
-                rows.append(_row(case, "ATE RMS (m)", ours["ate"], f"<= {VARIANT_ATE:.2f}", ours["ate"] <= VARIANT_ATE,
-                                 round(before["ate"], 4), ref_name, **info))
-                rows.append(_row(case, "ATE max (m)", ours["ate_max"], f"<= {VARIANT_ATE_MAX:.2f}",
-                                 ours["ate_max"] <= VARIANT_ATE_MAX, round(before["ate_max"], 4), ref_name))
-                if noise is None:
-                    rows.append(_row(case, "scans used", ours["scans"], None, None))
-                print(f"{case}: learned odometry {bias}; SLAM {ours['wall_s']:.0f} + {before['wall_s']:.0f} s wall",
-                      file=sys.stderr, flush=True)
+    for site, lidar, drive in ((s, li, d) for s in sites for li in lidars for d in drives):
+        rec = recording(site, lidar, cache, drive)
+        lid = LIDARS[lidar]
+        head = f"{site} {rec.length:.0f} m, {drive} drive, lidar {lid.fov:.0f} deg / {lid.beams} beams"
+        rows.append(_row(f"{head}: recording ({rec.t[-1]:.0f} s sim, {len(rec.t)} scans)",
+                         "recording wall time (s)", rec.wall_s, None, None))
+        for dec_name, dec, odo_name, noise in lidar_variants(quick):
+            name = f"{dec_name}, {odo_name}"
+            if pattern and pattern not in name:
+                continue
+            ours = run_slam(rec, SlamConfig(), **variant_filters(dec, noise))
+            before = run_slam(rec, calibration_off(), **variant_filters(dec, noise))
+            case = f"{head}, variant: {name}"
+            bias = learned_bias(ours["stats"])
+            info = {"learned": bias, "loops": ours["stats"].loop_closures,
+                    "loops_before": before["stats"].loop_closures, "where": where(rec, ours),
+                    "where_before": where(rec, before), "slam_wall_s": round(ours["wall_s"] + before["wall_s"], 1)}
+            rows.append(_row(case, "ATE RMS (m)", ours["ate"], f"<= {VARIANT_ATE:.2f}", ours["ate"] <= VARIANT_ATE,
+                             round(before["ate"], 4), ref_name, **info))
+            rows.append(_row(case, "ATE max (m)", ours["ate_max"], f"<= {VARIANT_ATE_MAX:.2f}",
+                             ours["ate_max"] <= VARIANT_ATE_MAX, round(before["ate_max"], 4), ref_name))
+            if noise is None:
+                rows.append(_row(case, "scans used", ours["scans"], None, None))
+            print(f"{case}: learned odometry {bias}; SLAM {ours['wall_s']:.0f} + {before['wall_s']:.0f} s wall",
+                  file=sys.stderr, flush=True)
     return rows
 
 
@@ -178,13 +181,14 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--sites", nargs="+", choices=tuple(SITES), default=list(SITES))
-    ap.add_argument("--lidars", nargs="+", choices=tuple(LIDARS), help="default: 180 and 360 (quick: 180)")
+    ap.add_argument("--lidars", nargs="+", choices=tuple(LIDARS), default=["180"], help="default: 180")
+    ap.add_argument("--drives", nargs="+", choices=tuple(DRIVES), default=list(DRIVES))
     ap.add_argument("-k", dest="pattern", help="only the variants whose name holds this, e.g. '0.7 m' or 'seed 3'")
     ap.add_argument("--cache", type=Path, help="directory to keep the recordings in (read when there)")
     ap.add_argument("--json", type=Path, help="write the rows (with where along the route the error is) here")
     ap.add_argument("--profile", action="store_true", help="print the max error per route leg of each variant")
     a = ap.parse_args()
-    rows = run(a.quick, tuple(a.sites), tuple(a.lidars) if a.lidars else None, a.pattern, a.cache)
+    rows = run(a.quick, tuple(a.sites), tuple(a.lidars), a.pattern, a.cache, tuple(a.drives))
     for r in rows:
         ref = "-" if r["reference"] is None else f"{r['reference']:.3f}"
         print(f"{r['case']:<100} {r['metric']:<24} {r['ours']:>9} before {ref:>7} goal {r['goal'] or '-':<7} "

@@ -12,8 +12,10 @@ table, ending where it started).  Lidars (``LIDARS``): 360 deg / 360 beams (the 
 unit) and 180 deg / 180 beams (the real logs' kind; the ``lidar:=270`` sector unit's frame).
 
 The route is followed by :func:`bench_amcl.go_to` on ground truth (the test harness, which the SLAM
-never sees), its commands limited to move_base's accelerations.  The same site, lidar and seed give the
-same recording.
+never sees), its commands limited to move_base's accelerations -- or not (``careless=True``: a
+keyboard driver's steps from full speed to a spin on the spot, in which the wheels slip and the
+wheel odometry counts several degrees of turn that did not happen).  The same site, lidar, seed and
+drive give the same recording.
 """
 from __future__ import annotations
 
@@ -115,8 +117,10 @@ class Recording:
                    z["leg"], float(z["wall_s"]))
 
 
-def record(site: str, lidar: str, seed: int = 0, route: tuple[tuple[float, float], ...] | None = None) -> Recording:
-    """Drive ``SITES[site]``'s route (or ``route``) with ``LIDARS[lidar]``; the simulator's noise seed ``seed``.
+def record(site: str, lidar: str, seed: int = 0, route: tuple[tuple[float, float], ...] | None = None,
+           careless: bool = False) -> Recording:
+    """Drive ``SITES[site]``'s route (or ``route``) with ``LIDARS[lidar]``; the simulator's noise seed ``seed``;
+    ``careless``: the commands are not rate-limited (the wheels slip in the turns).
 
     Raises RuntimeError naming the leg when the robot does not reach a waypoint in time (stuck)."""
     s, lid = SITES[site], LIDARS[lidar]
@@ -145,8 +149,11 @@ def record(site: str, lidar: str, seed: int = 0, route: tuple[tuple[float, float
                 if sim.time > limit:
                     raise RuntimeError(f"{site}: leg {k} to ({x}, {y}) not reached by {sim.time:.0f} s sim "
                                        f"(robot at {here.x:.2f}, {here.y:.2f})")
-                v += float(np.clip(cmd[0] - v, -ACC_LIM * dt, ACC_LIM * dt))
-                w += float(np.clip(cmd[1] - w, -ACC_LIM_THETA * dt, ACC_LIM_THETA * dt))
+                if careless:
+                    v, w = cmd
+                else:
+                    v += float(np.clip(cmd[0] - v, -ACC_LIM * dt, ACC_LIM * dt))
+                    w += float(np.clip(cmd[1] - w, -ACC_LIM_THETA * dt, ACC_LIM_THETA * dt))
                 sim.set_cmd_vel(v, w)
                 for e in sim.step(CONTROL_STEPS):
                     if e.kind == "odom":
