@@ -250,11 +250,11 @@ class BlockDetector:
         idle = {r.name: r for r in robots if not len(r.path)}
         waits = {(r, h) for r, h in zone_waits if h in idle}
         for b in robots:
-            if not len(b.path):
+            stood = self.stalled_for(b.name, t) if len(b.path) else 0.0
+            if stood < c.stall_time:
                 continue
             for a in idle.values():
-                in_way = (not b.held and in_the_way(b, a, c.look_ahead, c.clearance)) or (b.name, a.name) in waits
-                stood = self.stalled_for(b.name, t)
-                if in_way and judged(a, b) and stood >= c.stall_time:
+                if judged(a, b) and ((b.name, a.name) in waits or
+                                     (not b.held and in_the_way(b, a, c.look_ahead, c.clearance))):
                     resolve(Block(a.name, b.name, stood, idle=True))
         return blocks
