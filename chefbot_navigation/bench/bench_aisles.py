@@ -6,7 +6,10 @@ unicycle (test/unicycle_nav.py).
   home; per leg the time against the time-optimal limit (chefbot_navigation.time_limit.simple_limit:
   length / v_max + turns / w_max, goal <= 1.5x) and contacts of the collision bodies with the map;
 * single passages 0.30-0.45 m wide: the smallest one taken, and for narrower ones the time from the
-  first "blocked" report to the abort with the reason (goal <= 10 s).
+  first "blocked" report to the abort with the reason (goal <= 10 s);
+* generated dead ends (unicycle_nav.random_dead_end: an aisle 0.40-0.52 m wide, too narrow to turn
+  in, ending in a 0.34-0.37 m gap, at any angle): the robot drives in, the goal beyond is refused
+  (or reached, if it squeezes through), then a goal back in the room must be reached without contact.
 
 The pybullet version of the cafe legs is tests/test/cafe_aisles.test (figures in the README).
 
@@ -21,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "chefbot_navigation" / "src"))
 sys.path.insert(0, str(ROOT / "chefbot_navigation" / "test"))  # unicycle_nav (test-only helper)
 
-from unicycle_nav import Run, slot_map  # noqa: E402
+import numpy as np  # noqa: E402
+from unicycle_nav import Run, dead_end_map, random_dead_end, slot_map  # noqa: E402
 
 from chefbot_common.geometry import Pose2D  # noqa: E402
 from chefbot_common.map_io import load_map  # noqa: E402
@@ -76,6 +80,32 @@ def _passages(urdf: str, widths: list[float]) -> list[dict]:
     return rows
 
 
+def _dead_ends(urdf: str, n: int, seed: int = 1) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    counts = {"refused": [0, 0], "passed": [0, 0]}      # kind -> [runs, next goals reached without contact]
+    for _ in range(n):
+        shape, start, beyond, back = random_dead_end(rng)
+        run = Run(dead_end_map(*shape), urdf, start)
+        first, _, touches, _, _, _ = run.go(Goal(*beyond, None), t_max=120.0)
+        kind = "passed" if first.outcome == "succeeded" else "refused"
+        try:
+            res, _, touches2, _, _, _ = run.go(Goal(*back, None), t_max=150.0)
+            ok = res.outcome == "succeeded" and touches + touches2 == 0
+        except AssertionError:      # no outcome within t_max
+            ok = False
+        counts[kind][0] += 1
+        counts[kind][1] += ok
+    rows = []
+    for kind, what in (("refused", "refused at the gap"), ("passed", "squeezed through the gap")):
+        runs, ok = counts[kind]
+        rows.append({"bench": "aisles", "case": f"dead ends ({n} generated, seed {seed}): {what}, next goal in "
+                     f"the room", "metric": "next goals reached (fraction)",
+                     "ours": float(ok / runs) if runs else float("nan"), "reference": float(runs),
+                     "reference_name": "runs", "goal": "all, 0 contacts" if kind == "refused" else "(reported)",
+                     "met": bool(ok == runs) if kind == "refused" else True})
+    return rows
+
+
 def run(quick: bool = False) -> list[dict]:
     """Benchmark rows (see tools/bench.py)."""
     from chefbot_description.model import expand_xacro
@@ -83,4 +113,5 @@ def run(quick: bool = False) -> list[dict]:
     urdf = expand_xacro()
     rows = _cafe(urdf, ["table_s3", "table_n3"] if quick else None)
     rows += _passages(urdf, [0.33, 0.38] if quick else [0.30, 0.33, 0.35, 0.36, 0.38, 0.40, 0.45])
+    rows += _dead_ends(urdf, 6 if quick else 60)
     return rows

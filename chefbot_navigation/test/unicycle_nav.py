@@ -84,3 +84,40 @@ def slot_map(width: float, res: float = 0.025) -> OccupancyMap:
     data[:, x0:x1] = 100
     data[int(round((1.5 - width / 2) / res)):int(round((1.5 + width / 2) / res)), x0:x1] = 0
     return OccupancyMap(GridInfo(res, n_w, n_h, 0.0, 0.0, 0.0), data)
+
+
+def dead_end_map(aisle: float, gap: float, angle: float, depth: float, res: float = 0.025) -> OccupancyMap:
+    """8 x 8 m room (centre at 0, 0) split by a block 0.5 m + ``depth`` thick, its faces through the centre
+    at ``angle`` rad; a passage crosses it along that direction: ``aisle`` m wide for ``depth`` m, then a
+    ``gap`` m narrower than the robot, so the far side is unreachable for it."""
+    n = int(round(8.0 / res))
+    data = np.zeros((n, n), np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
+    ys, xs = np.mgrid[0:n, 0:n]
+    x, y = (xs + 0.5) * res - 4.0, (ys + 0.5) * res - 4.0
+    u = math.cos(angle) * x + math.sin(angle) * y       # along the passage
+    v = -math.sin(angle) * x + math.cos(angle) * y      # across it
+    block = (u > 0.0) & (u < depth + 0.5)
+    hole = ((u < depth) & (np.abs(v) < aisle / 2)) | ((u >= depth) & (np.abs(v) < gap / 2))
+    data[block & ~hole] = 100
+    return OccupancyMap(GridInfo(res, n, n, -4.0, -4.0, 0.0), data)
+
+
+def random_dead_end(rng: np.random.Generator) -> tuple[tuple[float, float, float, float], Pose2D,
+                                                         tuple[float, float], tuple[float, float]]:
+    """A generated :func:`dead_end_map` case: (aisle 0.40-0.52 m, gap 0.34-0.37 m, angle +-1 rad, depth
+    0.4-1.2 m), a start in the room on the passage's side, a goal beyond the gap (refused, or reached
+    if the robot squeezes through) and a next goal back in the room."""
+    aisle, gap = rng.uniform(0.40, 0.52), rng.uniform(0.34, 0.37)
+    angle, depth = rng.uniform(-1.0, 1.0), rng.uniform(0.4, 1.2)
+    c, s = math.cos(angle), math.sin(angle)
+
+    def in_room() -> tuple[float, float]:
+        while True:     # 0.6 m before the block's face and 0.5 m inside the walls
+            x, y = rng.uniform(-3.5, 3.5, 2)
+            if c * x + s * y < -0.6:
+                return float(x), float(y)
+
+    sx, sy = in_room()
+    return (aisle, gap, angle, depth), Pose2D(sx, sy, rng.uniform(-math.pi, math.pi)), \
+        (3.5 * c, 3.5 * s), in_room()

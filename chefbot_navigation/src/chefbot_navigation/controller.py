@@ -32,6 +32,8 @@ from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
 
 XY_RELEASE = 2.0   # x xy_goal_tolerance: a reached position is given up only this far from the goal
+NO_ROOM_TO_TURN = "no room to turn on the spot"   # the detail of a command blocked by a turn (Navigator escapes)
+BACKING_OUT = "backing out of a narrow passage"   # the detail of a command reversing along the new path
 
 
 @dataclass(frozen=True)
@@ -257,7 +259,7 @@ class RegulatedPurePursuit:
                 other = err - math.copysign(2.0 * math.pi, err)      # the long way round
                 hit2, _ = self.rotation_collides(pose, other, costmap)
                 if hit2:
-                    return self._emit(0.0, 0.0, t, dt, "blocked", "no room to turn on the spot", where=where,
+                    return self._emit(0.0, 0.0, t, dt, "blocked", NO_ROOM_TO_TURN, where=where,
                                       emergency=True)
                 err = other
         # the fastest turn rate from which the robot still stops at the target heading: it keeps
@@ -322,9 +324,19 @@ class RegulatedPurePursuit:
             lx, ly = -lx, -ly        # pursue the mirrored point, then drive backwards
         alpha = math.atan2(ly, lx)
         if abs(alpha) > p.rotate_to_heading_angle:
+            if self.v < -1e-3 and abs(alpha) > 0.5 * math.pi:
+                # backing out already: go on while that works (stopping to turn every other cycle halved
+                # the speed, and the robot never turned anyway)
+                back = self._back_out(pose, -lx, -ly, t, dt, costmap)
+                if back is not None:
+                    return back
             # rotating in place first keeps the robot on the path instead of swinging wide
             if abs(self.v) > 1e-3:
                 return self._emit(0.0, self.w, t, dt, "following", "stopping to turn")
+            if alpha * self.w < 0.0 and abs(alpha) > math.pi - 0.3:
+                # the target about straight behind: keep turning the way the robot turns (the sign of the
+                # bearing flipped with every step, and the robot wagged on the spot for ever)
+                alpha -= math.copysign(2.0 * math.pi, alpha)
             cmd = self._rotate_to(alpha, t, dt, "following", pose, costmap)
             if cmd.status == "blocked" and abs(alpha) > 0.5 * math.pi:
                 # no room to turn round (a dead-end aisle): back out along the path instead
@@ -384,7 +396,7 @@ class RegulatedPurePursuit:
         if self.arc_collides(pose, _limit(v, self.v, p.acc_lim_x, dt), _limit(w, self.w, p.acc_lim_theta, dt),
                              costmap):
             return None
-        return self._emit(v, w, t, dt, "following", "backing out of a narrow passage")
+        return self._emit(v, w, t, dt, "following", BACKING_OUT)
 
     def _squeeze(self, pose: Pose2D, t: float, dt: float, costmap: Costmap) -> Command | None:
         """A slow command that tracks the path closely (lookahead 0.12 m), or None if that collides too."""

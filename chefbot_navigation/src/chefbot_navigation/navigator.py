@@ -29,8 +29,17 @@ move_base's state machine:
   out and nothing is recovered meanwhile, and every timer starts afresh when it ends.
 * RETREATING (:meth:`Navigator.request_retreat`, a fleet's mutual block: this robot gives way):
   reverse along the way the robot came (its *trail*: the poses it drove through, the last
-  ``TRAIL_MAX`` x ``TRAIL_SPACING`` m, kept across goals) up to ``retreat_distance``, stopping early
-  if anything is behind it, then plan afresh.  A hold does not stop a retreat.
+  ``TRAIL_MAX`` x ``TRAIL_SPACING`` m, kept across goals; driving back along it shortens it) up to
+  ``retreat_distance``, stopping early if anything is behind it, then plan afresh.  A hold does not
+  stop a retreat.
+* ESCAPING: the path leaves behind the robot but it has no room to turn on the spot (a dead-end aisle,
+  the mouth of a gap a refused goal left it in; the controller blocked by the static map, or starting
+  to back out along the new path): reverse along the trail -- the way it came, known to be passable --
+  ``ESCAPE_BEYOND`` past the first place where a whole turn on the spot is free (at most
+  ``escape_distance``; stopping early if anything is behind it or the trail ends), then plan afresh.
+  The escape may brush cells within ``ESCAPE_SLACK`` of where the footprint stands (a robot wedged in
+  a gap's mouth).  At most ``MAX_ESCAPES`` per goal; after that the controller backs out along the
+  path itself, and a block counts as a passage narrower than the robot (``narrow_patience``).
 
 Also here, pure: the node's own parameters (:class:`NodeParams`, read with
 :func:`read_move_base_params`), goal checking (:func:`parse_goal`) and the
@@ -45,12 +54,20 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 
 from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
 from chefbot_common.map_io import MAX_MAP_CELLS
 from chefbot_common.params import private_spec
-from chefbot_navigation.controller import CONTROLLERS, ControllerParams, LocalController, make_controller
-from chefbot_navigation.costmap import INSCRIBED, LETHAL, CostmapParams, LayeredCostmap
+from chefbot_navigation.controller import (
+    BACKING_OUT,
+    CONTROLLERS,
+    NO_ROOM_TO_TURN,
+    ControllerParams,
+    LocalController,
+    make_controller,
+)
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap, CostmapParams, LayeredCostmap
 from chefbot_navigation.footprint import Footprint
 from chefbot_navigation.planners import PLANNERS, GlobalPlanner, Plan, PlannerParams, PlanningError, make_planner
 
@@ -59,6 +76,9 @@ TRAIL_MAX = 80          # trail poses kept (4 m)
 TRAIL_JUMP = 0.5        # m: a pose this far from the last one is a relocalisation -- the trail restarts
 RETREAT_LOOKAHEAD = 0.25  # m back along the trail the retreat steers to
 RETREAT_SPEED = 0.1     # m/s
+MAX_ESCAPES = 2         # escapes (reversing along the trail to room to turn) per goal
+ESCAPE_SLACK = 0.03     # m: an escape may brush lethal cells this close to the footprint where it stands
+ESCAPE_BEYOND = 0.3     # m an escape reverses on after the first place with room to turn
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
 RECOVERIES = ("clear_costmaps", "rotate", "back_off")
@@ -85,13 +105,15 @@ class NavigatorParams:
     retreat_distance: float = 0.8         # [m] a retreat reverses this far along the way the robot came (> 0)
     give_way_wait: float = 20.0           # [s] after a retreat, the robot waits while another robot is its only
                                           # way, at most this long, before it plans through it again (> 0)
+    escape_distance: float = 3.0          # [m] with no room to turn, the robot reverses at most this far along
+                                          # the way it came to find room (> 0)
 
     def __post_init__(self) -> None:
         if self.planner_frequency < 0.0:
             raise ValueError(f"planner_frequency must be >= 0 Hz, got {self.planner_frequency}")
         for name in ("planner_patience", "controller_patience", "oscillation_distance", "path_check_distance",
                      "local_window", "back_off_distance", "back_off_speed", "rotate_speed",
-                     "narrow_patience", "retreat_distance", "give_way_wait"):
+                     "narrow_patience", "retreat_distance", "give_way_wait", "escape_distance"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.oscillation_timeout < 0.0:
@@ -318,6 +340,7 @@ class Navigator:
         self.giving_way_until = -math.inf   # after a retreat: no planning through another robot until then
         self._plan_through_robot = False    # the latest plan goes through another robot (robots_as_cost)
         self.giving_way_reason = ""
+        self.escapes = 0                    # escapes of the current goal (MAX_ESCAPES)
         self._reset_timers(0.0)
 
     def set_hold(self, reason: str) -> None:
@@ -357,6 +380,7 @@ class Navigator:
         self.state = "planning"
         self.status = ""
         self.giving_way_until = -math.inf
+        self.escapes = 0
         self._say("planning")
         self._reset_timers(t)
 
@@ -372,9 +396,12 @@ class Navigator:
         self.retreat_request = reason or "asked to give way"
 
     def _record(self, pose: Pose2D) -> None:
-        """Add ``pose`` to the trail when it is TRAIL_SPACING from the last one (a jump restarts it)."""
+        """Add ``pose`` to the trail when it is TRAIL_SPACING from the last one (a jump restarts it);
+        back near the one before, the last is dropped (the robot reversed: the way it came is shorter)."""
         if self.trail and pose.distance(self.trail[-1]) > TRAIL_JUMP:
             self.trail.clear()
+        while len(self.trail) > 1 and pose.distance(self.trail[-2]) < TRAIL_SPACING:
+            self.trail.pop()
         if not self.trail or pose.distance(self.trail[-1]) >= TRAIL_SPACING:
             self.trail.append(pose)
             del self.trail[:-TRAIL_MAX]
@@ -460,9 +487,9 @@ class Navigator:
         self._say(f"recovering: {self.recovery.replace('_', ' ')} (because {why})")
         return self._recover(t, pose)
 
-    def _start_retreat(self, t: float, pose: Pose2D, why: str) -> StepResult:
-        """Reverse along the trail (the recovery 'retreat', outside the recovery order)."""
-        self.recovery = "retreat"
+    def _start_retreat(self, t: float, pose: Pose2D, why: str, kind: str = "retreat") -> StepResult:
+        """Reverse along the trail (the recovery 'retreat' or 'escape', outside the recovery order)."""
+        self.recovery = kind
         self.recovery_reason = why
         self.recovery_state = {"t0": t, "yaw": pose.yaw, "turned": 0.0, "x": pose.x, "y": pose.y, "moved": 0.0,
                                "last_x": pose.x, "last_y": pose.y}
@@ -471,16 +498,45 @@ class Navigator:
         self._say(f"backing out the way it came (because {why})")
         return self._recover(t, pose)
 
-    def _retreat_command(self, t: float, pose: Pose2D) -> tuple[float, float, bool]:
-        """(v, w, done) of one retreat step: steer backwards to the trail pose RETREAT_LOOKAHEAD m back."""
+    def _without_own_cells(self, local: Costmap, pose: Pose2D) -> Costmap:
+        """``local`` with the lethal cells within ESCAPE_SLACK of the footprint at ``pose`` made free: an
+        escape may brush past what the robot already (nearly) touches -- wedged in a gap's mouth, the
+        cells beside the camera bar stopped every reverse arc -- but nothing it has not reached."""
+        fp = getattr(self.controller, "footprint_pts", None)
+        if fp is None:
+            return local
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        px = pose.x + c * fp[:, 0] - s * fp[:, 1]
+        py = pose.y + s * fp[:, 0] + c * fp[:, 1]
+        row, col = local.info.world_to_cell(px, py)
+        near = np.zeros(local.cost.shape, dtype=bool)
+        inside = local.info.inside(row, col)
+        near[row[inside], col[inside]] = True
+        k = max(int(math.ceil(ESCAPE_SLACK / local.info.resolution)), 1)
+        near = ndimage.binary_dilation(near, iterations=k)
+        cost = local.cost.copy()
+        cost[near & (cost == LETHAL)] = 0
+        return Costmap(local.info, cost)
+
+    def _room_to_turn(self, pose: Pose2D) -> bool:
+        """Is a whole turn on the spot at ``pose`` free (footprint against the local costmap)?"""
+        check = getattr(self.controller, "rotation_collides", None)
+        if check is None:
+            return True
+        local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
+        return not check(pose, 2.0 * math.pi, local)[0]
+
+    def _retreat_command(self, t: float, pose: Pose2D, distance: float) -> tuple[float, float, bool]:
+        """(v, w, done) of one retreat step of at most ``distance`` m: steer backwards to the trail pose
+        RETREAT_LOOKAHEAD m back."""
         rs = self.recovery_state
         rs["moved"] += math.hypot(pose.x - rs["last_x"], pose.y - rs["last_y"])
         rs["last_x"], rs["last_y"] = pose.x, pose.y
         # steer to the first trail pose (going back) at least RETREAT_LOOKAHEAD away
         while len(self.trail) > 1 and pose.distance(self.trail[-1]) < RETREAT_LOOKAHEAD:
             self.trail.pop()
-        timeout = t - rs["t0"] > 3.0 * self.p.retreat_distance / RETREAT_SPEED + 2.0
-        if rs["moved"] >= self.p.retreat_distance or timeout or not self.trail or \
+        timeout = t - rs["t0"] > 3.0 * distance / RETREAT_SPEED + 2.0
+        if rs["moved"] >= distance or timeout or not self.trail or \
                 pose.distance(self.trail[-1]) < 0.5 * TRAIL_SPACING:
             return 0.0, 0.0, True
         target = self.trail[-1]
@@ -494,6 +550,8 @@ class Navigator:
         w = -v * curvature
         w = min(max(w, -self.cp.max_vel_theta), self.cp.max_vel_theta)
         local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
+        if self.recovery == "escape":
+            local = self._without_own_cells(local, pose)
         arc = getattr(self.controller, "arc_collides", None)
         blocked = arc(pose, v, w, local) if arc is not None else _arc_blocked(local, pose, v, RETREAT_LOOKAHEAD)
         if blocked:     # something came behind the robot (a guest, another robot): stop retreating
@@ -519,8 +577,15 @@ class Navigator:
                 done = True
                 self._say("recovering: rotate skipped (no room to turn on the spot)")
             w = 0.0 if done else self.p.rotate_speed
+        elif self.recovery == "escape":
+            # on past the first place with room to turn, so that the robot is clear of the mouth it backed
+            # out of (turning there, the new path cut the mouth's corner)
+            if "room_at" not in rs and self._room_to_turn(pose):
+                rs["room_at"] = rs["moved"]
+            v, w, done = self._retreat_command(t, pose, min(self.p.escape_distance,
+                                                            rs.get("room_at", math.inf) + ESCAPE_BEYOND))
         elif self.recovery == "retreat":
-            v, w, done = self._retreat_command(t, pose)
+            v, w, done = self._retreat_command(t, pose, self.p.retreat_distance)
             if done:    # now let the other robot through: no planning through it for a while
                 self.giving_way_until = t + self.p.give_way_wait
                 self.giving_way_reason = self.recovery_reason
@@ -642,6 +707,16 @@ class Navigator:
         cmd = self.controller.compute(pose, t, local)
         if cmd.status == "arrived":
             return self._finish("succeeded", "Goal reached.")
+        cannot_turn = cmd.detail == BACKING_OUT or (cmd.status == "blocked" and cmd.detail == NO_ROOM_TO_TURN and
+                                                    cmd.where is not None and self._static_obstacle_at(*cmd.where))
+        if cannot_turn and self.escapes < MAX_ESCAPES and len(self.trail) > 1 and \
+                not getattr(self.controller, "xy_reached", False):
+            # the path leaves the way the robot came and it cannot turn here: drive out the way it came (the
+            # controller's own backing out follows the new path, which bends away and ran it into the side)
+            self.escapes += 1
+            self.blocked_since = None
+            at = f" at ({cmd.where[0]:.2f}, {cmd.where[1]:.2f})" if cmd.where is not None else ""
+            return self._start_retreat(t, pose, f"no room to turn on the spot{at}", "escape")
         if cmd.status == "blocked":
             self.need_plan = True
             self.blocked_since = t if self.blocked_since is None else self.blocked_since

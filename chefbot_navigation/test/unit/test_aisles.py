@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from unicycle_nav import Run, slot_map
+from unicycle_nav import Run, dead_end_map, slot_map
 
 from chefbot_common.geometry import Pose2D
 from chefbot_common.map_io import load_map
@@ -64,6 +64,45 @@ def test_passage_narrower_than_the_robot_is_refused_with_where_within_10s(urdf: 
     # planner_frequency (1 Hz) bounds replanning while blocked (it used to replan every control cycle)
     span = plans[-1] - plans[0] if len(plans) > 1 else 1.0
     assert (len(plans) - 1) / span <= 1.0 + 1e-6, plans
+
+
+# (aisle, gap, angle, depth) m/rad, start (x, y, yaw), the refused goal, the next goal: the robot stops
+# in an aisle too narrow to turn in, at the mouth of the gap, and the next goal is back in the room.
+# Before the escape (reversing along the way the robot came), backing out along the new path, which
+# bends away, ran the robot into the aisle's side half way out (case 1), and a robot that had driven a
+# little into the gap could not reverse at all (case 2): both aborted "aisle narrower than the robot".
+DEAD_ENDS = [
+    ((0.461, 0.368, 0.901, 0.515), (-0.64, -1.27, 1.97), (2.17, 2.74), (-1.05, 0.28)),
+    ((0.415, 0.352, -0.555, 0.85), (-0.97, 0.97, 2.17), (2.97, -1.84), (-1.42, 1.81)),
+    ((0.499, 0.369, -0.876, 0.474), (-0.57, 0.95, -2.21), (2.24, -2.69), (-1.47, 1.48)),   # wedged: brushes
+    ((0.465, 0.349, -0.341, 1.031), (-1.44, -0.19, -0.58), (3.30, -1.17), (-1.33, -0.36)),  # then turns round
+]
+
+
+@pytest.mark.parametrize("case", range(len(DEAD_ENDS)))
+def test_robot_refused_in_a_dead_end_drives_out_for_the_next_goal(urdf: str, case: int) -> None:
+    shape, start, refused, nxt = DEAD_ENDS[case]
+    run = Run(dead_end_map(*shape), urdf, Pose2D(*start))
+    res, _, touches, events, _, _ = run.go(Goal(*refused, None), t_max=120.0)
+    assert res.outcome == "aborted" and "aisle narrower than the robot" in res.text, (res.text, events)
+    stuck = run.pose
+    res, took, touches2, events, _, _ = run.go(Goal(*nxt, None), t_max=120.0)
+    assert res.outcome == "succeeded", f"from ({stuck.x:.2f}, {stuck.y:.2f}): {res.text}; {events}"
+    assert touches + touches2 == 0
+    assert any(e.startswith("backing out") for e in events), events
+
+
+def test_trail_is_the_way_back(urdf: str) -> None:
+    """Driving back along the trail shortens it (reversing out used to append the way back to it, and
+    a retreat then steered to a pose in front of the robot)."""
+    run = Run(slot_map(0.60), urdf, Pose2D(1.0, 1.5, 0.0))
+    nav = run.nav
+    for x in np.arange(1.0, 2.0, 0.01):
+        nav._record(Pose2D(float(x), 1.5, 0.0))
+    assert len(nav.trail) == 20 and nav.trail[-1].x == pytest.approx(1.95, abs=0.011)
+    for x in np.arange(2.0, 1.5, -0.01):
+        nav._record(Pose2D(float(x), 1.5, 0.0))
+    assert nav.trail[-1].x == pytest.approx(1.5, abs=0.051) and len(nav.trail) <= 11
 
 
 def test_too_narrow_for_the_inscribed_circle_is_refused_at_once(urdf: str) -> None:
