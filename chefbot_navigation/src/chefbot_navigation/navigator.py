@@ -519,12 +519,14 @@ class Navigator:
         return Costmap(local.info, cost)
 
     def _room_to_turn(self, pose: Pose2D) -> bool:
-        """Is a whole turn on the spot at ``pose`` free (footprint against the local costmap)?"""
-        check = getattr(self.controller, "rotation_collides", None)
-        if check is None:
+        """Is a whole turn on the spot at ``pose`` free (footprint against the local costmap; a robot
+        touching something where it stands has no room)?"""
+        check = getattr(self.controller, "poses_collide", None)
+        if check is None or getattr(self.controller, "footprint_pts", None) is None:
             return True
         local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
-        return not check(pose, 2.0 * math.pi, local)[0]
+        yaws = pose.yaw + np.linspace(0.0, 2.0 * math.pi, 126, endpoint=False)
+        return not check(np.full(len(yaws), pose.x), np.full(len(yaws), pose.y), yaws, local)[0]
 
     def _retreat_command(self, t: float, pose: Pose2D, distance: float) -> tuple[float, float, bool]:
         """(v, w, done) of one retreat step of at most ``distance`` m: steer backwards to the trail pose
