@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from scipy import ndimage
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
@@ -34,6 +35,7 @@ from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
 XY_RELEASE = 2.0   # x xy_goal_tolerance: a reached position is given up only this far from the goal
 NO_ROOM_TO_TURN = "no room to turn on the spot"   # the detail of a command blocked by a turn (Navigator escapes)
 BACKING_OUT = "backing out of a narrow passage"   # the detail of a command reversing along the new path
+TOUCH_SLACK = 0.03  # m: lethal cells this close to the footprint where it stands count as touched (without_touched)
 
 
 @dataclass(frozen=True)
@@ -164,15 +166,36 @@ class RegulatedPurePursuit:
         i, k = hit[0]
         return True, (float(px[i, k]), float(py[i, k]))
 
+    def without_touched(self, costmap: Costmap, pose: Pose2D, slack: float = TOUCH_SLACK) -> Costmap:
+        """``costmap`` with the lethal cells within ``slack`` m of the footprint at ``pose`` made free: what
+        the robot already (nearly) touches -- a bump, a mislocalisation, a wedge in a gap's mouth -- may
+        be brushed on the way out, but nothing it has not reached."""
+        if self.footprint_pts is None:
+            return costmap
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        fp = self.footprint_pts
+        row, col = costmap.info.world_to_cell(pose.x + c * fp[:, 0] - s * fp[:, 1],
+                                              pose.y + s * fp[:, 0] + c * fp[:, 1])
+        near = np.zeros(costmap.cost.shape, dtype=bool)
+        inside = costmap.info.inside(row, col)
+        near[row[inside], col[inside]] = True
+        near = ndimage.binary_dilation(near, iterations=max(int(math.ceil(slack / costmap.info.resolution)), 1))
+        cost = costmap.cost.copy()
+        cost[near & (cost == LETHAL)] = 0
+        return Costmap(costmap.info, cost)
+
     def rotation_collides(self, pose: Pose2D, angle: float, costmap: Costmap) -> tuple[bool, tuple | None]:
-        """Would turning on the spot by ``angle`` rad (signed) sweep the footprint into an obstacle?"""
+        """Would turning on the spot by ``angle`` rad (signed) sweep the footprint into an obstacle?  A robot
+        already touching something (mislocalised, bumped) may turn past what it touches, into nothing else."""
         if self.footprint_pts is None or abs(angle) < 1e-6:
             return False, None
         n = max(int(math.ceil(abs(angle) / 0.05)), 1)
         yaws = pose.yaw + np.linspace(0.0, angle, n + 1)[1:]
         here = self.poses_collide(np.array([pose.x]), np.array([pose.y]), np.array([pose.yaw]), costmap)[0]
         if here:
-            return False, None     # already touching (e.g. mislocalised): turning may free it, do not freeze
+            # turning may free it, so do not freeze; but a robot touching one side of a narrow aisle used to
+            # turn freely until its camera bar wedged it diagonally, where it could neither turn nor back out
+            costmap = self.without_touched(costmap, pose)
         return self.poses_collide(np.full(n, pose.x), np.full(n, pose.y), yaws, costmap)
 
     def reset(self) -> None:

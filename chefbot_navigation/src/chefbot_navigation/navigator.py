@@ -37,8 +37,8 @@ move_base's state machine:
   to back out along the new path): reverse along the trail -- the way it came, known to be passable --
   ``ESCAPE_BEYOND`` past the first place where a whole turn on the spot is free (at most
   ``escape_distance``; stopping early if anything is behind it or the trail ends), then plan afresh.
-  The escape may brush cells within ``ESCAPE_SLACK`` of where the footprint stands (a robot wedged in
-  a gap's mouth).  At most ``MAX_ESCAPES`` per goal; after that the controller backs out along the
+  The escape may brush what the robot touches where it stands (``without_touched``: a robot wedged
+  in a gap's mouth).  At most ``MAX_ESCAPES`` per goal; after that the controller backs out along the
   path itself, and a block counts as a passage narrower than the robot (``narrow_patience``).
 
 Also here, pure: the node's own parameters (:class:`NodeParams`, read with
@@ -54,7 +54,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import ndimage
 
 from chefbot_common.geometry import Pose2D, QuaternionError, wrap_angle, yaw_from_quaternion
 from chefbot_common.map_io import MAX_MAP_CELLS
@@ -67,7 +66,7 @@ from chefbot_navigation.controller import (
     LocalController,
     make_controller,
 )
-from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap, CostmapParams, LayeredCostmap
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, CostmapParams, LayeredCostmap
 from chefbot_navigation.footprint import Footprint
 from chefbot_navigation.planners import PLANNERS, GlobalPlanner, Plan, PlannerParams, PlanningError, make_planner
 
@@ -77,7 +76,6 @@ TRAIL_JUMP = 0.5        # m: a pose this far from the last one is a relocalisati
 RETREAT_LOOKAHEAD = 0.25  # m back along the trail the retreat steers to
 RETREAT_SPEED = 0.1     # m/s
 MAX_ESCAPES = 2         # escapes (reversing along the trail to room to turn) per goal
-ESCAPE_SLACK = 0.03     # m: an escape may brush lethal cells this close to the footprint where it stands
 ESCAPE_BEYOND = 0.3     # m an escape reverses on after the first place with room to turn
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
@@ -498,26 +496,6 @@ class Navigator:
         self._say(f"backing out the way it came (because {why})")
         return self._recover(t, pose)
 
-    def _without_own_cells(self, local: Costmap, pose: Pose2D) -> Costmap:
-        """``local`` with the lethal cells within ESCAPE_SLACK of the footprint at ``pose`` made free: an
-        escape may brush past what the robot already (nearly) touches -- wedged in a gap's mouth, the
-        cells beside the camera bar stopped every reverse arc -- but nothing it has not reached."""
-        fp = getattr(self.controller, "footprint_pts", None)
-        if fp is None:
-            return local
-        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        px = pose.x + c * fp[:, 0] - s * fp[:, 1]
-        py = pose.y + s * fp[:, 0] + c * fp[:, 1]
-        row, col = local.info.world_to_cell(px, py)
-        near = np.zeros(local.cost.shape, dtype=bool)
-        inside = local.info.inside(row, col)
-        near[row[inside], col[inside]] = True
-        k = max(int(math.ceil(ESCAPE_SLACK / local.info.resolution)), 1)
-        near = ndimage.binary_dilation(near, iterations=k)
-        cost = local.cost.copy()
-        cost[near & (cost == LETHAL)] = 0
-        return Costmap(local.info, cost)
-
     def _room_to_turn(self, pose: Pose2D) -> bool:
         """Is a whole turn on the spot at ``pose`` free (footprint against the local costmap; a robot
         touching something where it stands has no room)?"""
@@ -552,8 +530,9 @@ class Navigator:
         w = -v * curvature
         w = min(max(w, -self.cp.max_vel_theta), self.cp.max_vel_theta)
         local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
-        if self.recovery == "escape":
-            local = self._without_own_cells(local, pose)
+        touched = getattr(self.controller, "without_touched", None)
+        if self.recovery == "escape" and touched is not None:
+            local = touched(local, pose)     # a robot wedged in a gap's mouth may brush what it touches
         arc = getattr(self.controller, "arc_collides", None)
         blocked = arc(pose, v, w, local) if arc is not None else _arc_blocked(local, pose, v, RETREAT_LOOKAHEAD)
         if blocked:     # something came behind the robot (a guest, another robot): stop retreating

@@ -124,6 +124,11 @@ def test_turning_on_the_spot_is_checked_with_the_footprint(urdf: str) -> None:
     assert hit and abs(where[1] - 1.5) > 0.19
     open_area = run.layers.window(1.2, 1.5, 3.0, 3.0)
     assert ctrl.rotation_collides(Pose2D(1.2, 1.5, 0.0), 2 * math.pi, open_area) == (False, None)
+    # touching one side (mislocalised, bumped): the turn may brush what it touches, not sweep into the other
+    touching = Pose2D(3.0, 1.545, 0.0)
+    assert ctrl.poses_collide(np.array([3.0]), np.array([1.545]), np.array([0.0]), inside)[0]
+    assert ctrl.rotation_collides(touching, math.pi / 2, inside)[0]
+    assert not ctrl.rotation_collides(touching, 0.02, inside)[0]
     ctrl.set_footprint(None)     # a round robot: turning sweeps nothing new
     assert ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside) == (False, None)
 
