@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from chefbot_navigation.robots_layer import clip_length
+from chefbot_navigation.robots_layer import clip_length, from_nearest
 
 
 @dataclass(frozen=True)
@@ -111,11 +111,10 @@ def _densify(pts: np.ndarray, step: float = 0.05) -> np.ndarray:
 
 def remaining(a: RobotView, look_ahead: float = math.inf) -> np.ndarray:
     """``a``'s plan from ``a`` on (from its point nearest ``a``), the first ``look_ahead`` m, densified."""
-    pts = np.asarray(a.path, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
+    rest = from_nearest(a.path, a.x, a.y)
+    if len(rest) == 0:
         return np.zeros((0, 2))
-    start = int(np.argmin(np.hypot(pts[:, 0] - a.x, pts[:, 1] - a.y)))
-    ahead = np.vstack(([[a.x, a.y]], pts[start:]))
+    ahead = np.vstack(([[a.x, a.y]], rest))
     return _densify(clip_length(ahead, look_ahead) if math.isfinite(look_ahead) else ahead)
 
 

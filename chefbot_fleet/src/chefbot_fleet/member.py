@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from chefbot_common.fleet_file import FleetFileError, FleetRobot, load_fleet
+from chefbot_navigation.robots_layer import from_nearest
 
 #: amcl's pose covariance is a row-major 6 x 6 (x, y, z, roll, pitch, yaw) matrix.
 COV_X, COV_Y, COV_YAW = 0, 7, 35
@@ -49,11 +50,9 @@ def remaining_path(points: np.ndarray, x: float, y: float, horizon: float) -> np
 
     The nearest point is searched along the whole plan; a plan that passes the robot twice (a loop)
     is cut at the nearer pass."""
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if len(pts) == 0 or horizon <= 0.0:
-        return pts[:0]
-    start = int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))
-    ahead = pts[start:]
+    ahead = from_nearest(points, x, y)
+    if len(ahead) == 0 or horizon <= 0.0:
+        return ahead[:0]
     cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ahead, axis=0).T))))
     return ahead[:int(np.searchsorted(cum, horizon, side="left")) + 1]
 

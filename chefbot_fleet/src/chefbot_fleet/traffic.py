@@ -30,6 +30,7 @@ import numpy as np
 from chefbot_common.geometry import Pose2D
 from chefbot_fleet.reservations import ZoneTable
 from chefbot_fleet.zones import ZoneConfig, ZoneMap
+from chefbot_navigation.robots_layer import from_nearest
 
 
 @dataclass(frozen=True)
@@ -74,13 +75,12 @@ class ZoneGeometry:
                   skip: int = 0) -> int:
         """The first zone other than ``skip`` a footprint of ``radius`` following ``plan`` ((N, 2) m)
         from its point nearest (x, y) would touch within ``lookahead`` m (0: none)."""
-        pts = np.asarray(plan, float).reshape(-1, 2)
-        if len(pts) == 0 or not self.dist:
+        ahead = from_nearest(plan, x, y)
+        if len(ahead) == 0 or not self.dist:
             return 0
-        start = int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y)))
         travelled = 0.0
-        prev = pts[start]
-        for p in pts[start:]:
+        prev = ahead[0]
+        for p in ahead:
             travelled += float(np.hypot(*(p - prev)))
             prev = p
             if travelled > lookahead:

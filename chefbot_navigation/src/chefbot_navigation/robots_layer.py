@@ -194,6 +194,16 @@ class RobotsLayer:
         return np.round(uv * (1 << _SHIFT)).astype(np.int32).reshape(-1, 1, 2)
 
 
+def from_nearest(pts: np.ndarray, x: float, y: float) -> np.ndarray:
+    """The polyline ``pts`` (K, 2) from its point nearest to (x, y) on: what a robot there still has to
+    drive.  The whole line is searched, so a path that passes the robot twice (a loop) is cut at the
+    nearer pass."""
+    pts = np.asarray(pts, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return pts
+    return pts[int(np.argmin(np.hypot(pts[:, 0] - x, pts[:, 1] - y))):]
+
+
 def clip_length(pts: np.ndarray, length: float) -> np.ndarray:
     """The first ``length`` m of the polyline ``pts`` (K, 2), the last segment cut where it reaches it."""
     if len(pts) < 2 or length <= 0.0:
