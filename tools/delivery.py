@@ -230,6 +230,23 @@ class DeliveryClient:
         rospy.wait_for_service(self.pre + "move_base/make_plan", timeout=max(1.0, deadline - time.monotonic()))
         self.make_plan = rospy.ServiceProxy(self.pre + "move_base/make_plan", GetPlan)
 
+    def wait_localized(self, timeout: float, tolerance: float = 0.3) -> None:
+        """Wait (wall clock) until the localization's estimate is within ``tolerance`` m of the truth: a
+        fleet robot's amcl starts at the map origin until fleet_member's initial pose arrives, and a goal
+        sent before that was planned from inside a wall and aborted as unreachable."""
+        deadline = time.monotonic() + timeout
+        while True:
+            est = self.estimate()
+            with self._lock:
+                here = self.map_in_world.inverse().compose(self._truth_pose())
+            if est is not None and math.hypot(est.x - here.x, est.y - here.y) <= tolerance:
+                return
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                where = "none" if est is None else f"({est.x:.2f}, {est.y:.2f})"
+                raise TimeoutError(f"{self.pre or '/'}: localization estimate {where} not within {tolerance} m "
+                                   f"of the robot at ({here.x:.2f}, {here.y:.2f}) after {timeout:.0f} s")
+            time.sleep(0.1)
+
     def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
         """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
         with self._lock:

@@ -134,6 +134,7 @@ def drive_robot(robot, client, run: list[str], tables: dict, results: dict, lock
 
     try:
         client.wait_ready(120.0)
+        client.wait_localized(120.0)
     except (TimeoutError, rospy.ROSException) as exc:   # the robot's stack did not come up
         with lock:
             results[robot.name] = {"error": str(exc), "legs": []}

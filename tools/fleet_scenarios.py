@@ -183,6 +183,8 @@ def _drive(names, legs, launch, tmp: Path) -> tuple[list[RobotResult], float]:
     clients = [DeliveryClient(ns=n) for n in names]      # one after the other (tf2_frames service)
     for c in clients:
         c.wait_ready(180.0)
+    for c in clients:
+        c.wait_localized(120.0)
     results: dict[str, RobotResult] = {}
 
     def go(i: int) -> None:
