@@ -218,6 +218,12 @@ class DeliveryClient:
         yaw = yaw_from_quaternion(*(getattr(p.orientation, k) for k in "xyzw"))
         return Pose2D(p.position.x, p.position.y, yaw)
 
+    def _truth_in_map(self) -> Pose2D:
+        """The latest ground-truth pose in the map frame (world -> map through ``map_in_world``)."""
+        with self._lock:
+            truth = self._truth_pose()
+        return self.map_in_world.inverse().compose(truth)
+
     def wait_ready(self, timeout: float) -> None:
         """Wait (wall clock) for ground truth and the move_base server."""
         deadline = time.monotonic() + timeout
@@ -237,8 +243,7 @@ class DeliveryClient:
         deadline = time.monotonic() + timeout
         while True:
             est = self.estimate()
-            with self._lock:
-                here = self.map_in_world.inverse().compose(self._truth_pose())
+            here = self._truth_in_map()
             if est is not None and math.hypot(est.x - here.x, est.y - here.y) <= tolerance:
                 return
             if time.monotonic() > deadline or rospy.is_shutdown():
@@ -249,9 +254,7 @@ class DeliveryClient:
 
     def planned_path(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, float]:
         """The global plan from the robot's pose to (x, y, yaw): points (N, 2) m and the robot's yaw."""
-        with self._lock:
-            truth = self._truth_pose()
-        here = self.map_in_world.inverse().compose(truth)   # world -> map frame
+        here = self._truth_in_map()
         start = PoseStamped()
         start.header.frame_id = "map"
         start.pose.position.x, start.pose.position.y = here.x, here.y

@@ -688,21 +688,20 @@ class Navigator:
         cmd = self.controller.compute(pose, t, local)
         if cmd.status == "arrived":
             return self._finish("succeeded", "Goal reached.")
-        cannot_turn = cmd.detail == BACKING_OUT or (cmd.status == "blocked" and cmd.detail == NO_ROOM_TO_TURN and
-                                                    cmd.where is not None and self._static_obstacle_at(*cmd.where))
+        # blocked by the static map (a passage narrower than the robot), and where
+        narrow = cmd.status == "blocked" and cmd.where is not None and self._static_obstacle_at(*cmd.where)
+        at = f" at ({cmd.where[0]:.2f}, {cmd.where[1]:.2f})" if cmd.where is not None else ""
+        cannot_turn = cmd.detail == BACKING_OUT or (narrow and cmd.detail == NO_ROOM_TO_TURN)
         if cannot_turn and self.escapes < MAX_ESCAPES and len(self.trail) > 1 and \
                 not getattr(self.controller, "xy_reached", False):
             # the path leaves the way the robot came and it cannot turn here: drive out the way it came (the
             # controller's own backing out follows the new path, which bends away and ran it into the side)
             self.escapes += 1
             self.blocked_since = None
-            at = f" at ({cmd.where[0]:.2f}, {cmd.where[1]:.2f})" if cmd.where is not None else ""
             return self._start_retreat(t, pose, f"no room to turn on the spot{at}", "escape")
         if cmd.status == "blocked":
             self.need_plan = True
             self.blocked_since = t if self.blocked_since is None else self.blocked_since
-            narrow = cmd.where is not None and self._static_obstacle_at(*cmd.where)
-            at = f" at ({cmd.where[0]:.2f}, {cmd.where[1]:.2f})" if cmd.where is not None else ""
             if narrow:
                 self._say(f"blocked: passage narrower than the robot{at} ({cmd.detail})")
                 if t - self.blocked_since > self.p.narrow_patience:
