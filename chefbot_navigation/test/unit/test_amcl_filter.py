@@ -325,6 +325,52 @@ def test_recovery_waits_for_a_poor_fit() -> None:
         FilterConfig(max_fit=0.0)
 
 
+def test_a_fit_that_never_was_good_still_injects() -> None:
+    """After global localization the set can settle on a look-alike that fits poorly (0.4-0.6) while
+    w_fast never drops below w_slow (the fit was never better): amcl's rule injects nothing and the
+    true pose, never sampled, is lost.  With poor_fit_rate, no particle fitting well (the best one
+    below max_fit) injects at least that fraction; one good particle stops it, and 0 is amcl's rule."""
+    def pf(rate: float) -> ParticleFilter:
+        f = ParticleFilter(FilterConfig(min_particles=10, max_particles=100, max_fit=0.7, poor_fit_rate=rate),
+                           np.random.default_rng(0))
+        f.w_slow = f.w_fast = 0.05          # steady: nothing dropped
+        f.last_fit, f.best_fit = 0.5, 0.6
+        return f
+
+    assert pf(0.0).w_diff == 0.0
+    assert pf(0.1).w_diff == pytest.approx(0.1)
+    dropped = pf(0.1)
+    dropped.w_fast = 0.02                   # a drop (kidnap) injects by the averages' rule, more
+    assert dropped.w_diff == pytest.approx(0.6)
+    found = pf(0.1)
+    found.best_fit = 0.75                   # a particle explains the scans: the set's poor mean (the injected
+    assert found.w_diff == 0.0              # ones among it) does not keep injecting
+    fresh = ParticleFilter(FilterConfig(max_fit=0.7, poor_fit_rate=0.1), np.random.default_rng(0))
+    assert fresh.w_diff == 0.0              # nothing weighed yet
+    with pytest.raises(ValueError, match="recovery_poor_fit_rate"):
+        FilterConfig(poor_fit_rate=1.0)
+
+
+def test_global_localization_leaves_a_poorly_fitting_look_alike() -> None:
+    """The whole set on a wrong place that fits the scans poorly, the averages steady: with
+    poor_fit_rate the scored injection finds the true pose within a few seconds of turning, and
+    (estimate_min_gain, as shipped) the estimate stays there once it is found."""
+    at = Pose2D(2.6, 2.9, 0.3)
+    truth = spin_in_place(at, 8.0)
+    odom = drifting_odometry(truth, seed=7)
+    wrong = Pose2D(5.6, 2.0, 0.3)
+
+    def final_error(rate: float) -> float:
+        amcl = Amcl(config(update_min_a=0.1, recovery_max_fit=0.7, recovery_poor_fit_rate=rate, estimate_min_gain=0.1,
+                           initial_pose_x=wrong.x, initial_pose_y=wrong.y, initial_pose_a=wrong.yaw,
+                           initial_cov_xx=0.0025, initial_cov_yy=0.0025, initial_cov_aa=0.0025))
+        amcl.set_map(ROOM)
+        return run(amcl, truth, odom, LIDAR)[-1][0]
+
+    assert final_error(0.1) < 0.25
+    assert final_error(0.0) > 1.0
+
+
 def test_estimate_does_not_follow_a_heavier_look_alike_that_fits_the_scans_no_better() -> None:
     """In a room that looks the same turned 180 deg, recovery injection seeds the look-alike place,
     and resampling can make it the heavier cluster although it explains the scans no better (the

@@ -96,6 +96,9 @@ class AmclConfig:
     estimate_min_gain: float = 0.0      # ours: ... and fit the recent scans this much better (0: weight alone)
     recovery_max_fit: float = 0.7       # ours: no recovery injection while the mean beam fit is at least this
                                         # (1: amcl, the alphas alone)
+    recovery_poor_fit_rate: float = 0.0  # ours: while no particle's mean beam fit reaches recovery_max_fit, at least
+                                        # this fraction of the set is injected per resampling (0: amcl, the alphas
+                                        # alone)
     scan_timeout: float = 1.0           # ours: s without a scan before the node says so
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
@@ -132,7 +135,7 @@ class AmclConfig:
                             self.recovery_alpha_slow, self.recovery_alpha_fast, self.recovery_pool,
                             self.recovery_scans, self.recovery_beams, self.recovery_refine,
                             self.estimate_switch_ratio, self.recovery_max_fit,
-                            self.estimate_min_gain)
+                            self.estimate_min_gain, self.recovery_poor_fit_rate)
 
     def motion_noise(self) -> DiffMotionNoise:
         """The odometry motion model's noise (odom_alpha1..4)."""
