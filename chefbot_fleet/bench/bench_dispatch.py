@@ -1,0 +1,117 @@
+"""Order planning alone (chefbot_fleet.dispatch, no ROS, no physics): a seeded stream of orders served
+in the hotel by 1, 2 and 3 robots, our insertion planner against the nearest-idle baseline.
+
+Travel times are the hotel's planned paths (our global planner on the world's raster, the table poses
+of hotel_world_tables.yaml, 'home' as the kitchen) over the time-optimal speed profile the delivery
+legs are judged by (``time_limit.profile_limit``, the robot's limits); 20 s to load a trip, 15 s at
+each table.  Orders: 30 of one or two tables (uniform), Poisson arrivals, at two rates: one order per
+``busy`` s, the rate that keeps one robot busy (its mean single-order trip), and three times that.
+Per case, over ``SEEDS`` streams: orders per hour (orders / makespan), median and 95th-percentile wait
+(order -> robot at the order's last table), makespan, km driven.  Goals of the fleet-order issue: our
+mean wait <= 0.8x the baseline's; 3 robots >= 2.5x the throughput of one (at the fast rate: at the
+slow one the arrivals, not the robots, set the throughput).
+"""
+from __future__ import annotations
+
+import itertools
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+
+HOTEL = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
+TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
+SEEDS = 10
+N_ORDERS = 30
+
+
+def hotel_site():
+    """The Site of the hotel: travel s and metres between 'home' and the tables over planned paths."""
+    import yaml
+
+    from chefbot_common.map_io import load_map
+    from chefbot_fleet.dispatch import Site
+    from chefbot_navigation.costmap import CostmapParams, LayeredCostmap
+    from chefbot_navigation.planners import PlannerParams, make_planner
+    from chefbot_navigation.time_limit import MotionLimits, path_length, profile_limit
+
+    poses = yaml.safe_load(TABLES.read_text())["poses"]
+    cm = LayeredCostmap(load_map(HOTEL), CostmapParams()).master()
+    planner = make_planner("dijkstra", PlannerParams())
+    names = sorted(poses)
+    secs, metres = {}, {}
+    for a, b in itertools.combinations(names, 2):
+        pa, pb = poses[a], poses[b]
+        pts = planner.plan(cm, (pa["x"], pa["y"]), (pb["x"], pb["y"])).points
+        for u, v, s_yaw, g_yaw in ((a, b, pa["yaw"], pb["yaw"]), (b, a, pb["yaw"], pa["yaw"])):
+            path = pts if u == a else pts[::-1]
+            secs[u, v] = profile_limit(path, MotionLimits(), s_yaw, g_yaw)
+            metres[u, v] = path_length(path)
+    for n in names:
+        secs[n, n] = metres[n, n] = 0.0
+    return Site("home", lambda u, v: secs[u, v], lambda u, v: metres[u, v], load_s=20.0, serve_s=15.0), names
+
+
+def order_stream(tables: list[str], n: int, every_s: float, seed: int):
+    from chefbot_fleet.dispatch import Order
+    rng = np.random.default_rng(seed)
+    t, out = 0.0, []
+    for k in range(n):
+        t += float(rng.exponential(every_s))
+        pick = rng.choice(len(tables), size=int(rng.integers(1, 3)), replace=False)
+        out.append(Order(f"o{k}", tuple(tables[i] for i in sorted(pick)), t))
+    return out
+
+
+def run(quick: bool = False) -> list[dict]:
+    from chefbot_fleet.dispatch import NearestIdle, Planner, simulate
+
+    site, names = hotel_site()
+    tables = [n for n in names if n != site.kitchen]
+    # the mean single-order trip: load, there, serve, back
+    busy = statistics.mean(site.load_s + site.travel("home", t) + site.serve_s + site.travel(t, "home")
+                           for t in tables)
+    seeds = range(2 if quick else SEEDS)
+    rows = []
+    per_hour = {}
+    for every, rate_name in ((busy, "one robot busy"), (busy / 3.0, "3x that")):
+        for robots in (1, 2, 3):
+            names_r = [f"chefbot{i + 1}" for i in range(robots)]
+            res = {}
+            for policy in (Planner, NearestIdle):
+                outs = [simulate(site, policy(site), order_stream(tables, N_ORDERS, every, s), names_r) for s in seeds]
+                waits = [w for o in outs for w in o.waits.values()]
+                res[policy] = {
+                    "orders per hour": statistics.mean(N_ORDERS / (o.makespan / 3600.0) for o in outs),
+                    "wait s, mean": statistics.mean(waits),
+                    "wait s, median": statistics.median(waits),
+                    "wait s, 95th percentile": float(np.percentile(waits, 95)),
+                    "makespan s (mean)": statistics.mean(o.makespan for o in outs),
+                    "km driven (mean)": statistics.mean(o.metres for o in outs) / 1000.0,
+                }
+            per_hour[rate_name, robots] = res[Planner]["orders per hour"]
+            case = (f"hotel, {N_ORDERS} orders of 1-2 tables, one per {every:.0f} s ({rate_name}), {robots} "
+                    f"robot{'s' if robots > 1 else ''}, {len(seeds)} seeds")
+            for metric, ours in res[Planner].items():
+                ref = res[NearestIdle][metric]
+                goal = met = None
+                if metric == "wait s, mean":
+                    goal, met = "<= 0.8x baseline", ours <= 0.8 * ref
+                rows.append({"bench": "dispatch", "case": case, "metric": metric, "ours": ours, "reference": ref,
+                             "reference_name": "nearest idle, one order per trip", "goal": goal, "met": met})
+    for rate_name in ("one robot busy", "3x that"):
+        ratio = per_hour[rate_name, 3] / per_hour[rate_name, 1]
+        rows.append({"bench": "dispatch", "case": f"hotel, throughput of 3 robots / 1 robot ({rate_name})",
+                     "metric": "ratio", "ours": ratio, "reference": None, "reference_name": None,
+                     "goal": ">= 2.5" if rate_name == "3x that" else None,
+                     "met": ratio >= 2.5 if rate_name == "3x that" else None})
+    return rows
+
+
+if __name__ == "__main__":
+    for r in run(quick="--quick" in sys.argv):
+        print(r)
