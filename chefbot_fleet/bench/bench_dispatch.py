@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
 HOTEL = ROOT / "chefbot_navigation" / "maps" / "hotel_world_map.yaml"
 TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
@@ -49,8 +48,8 @@ def hotel_site():
         pts = planner.plan(cm, (pa["x"], pa["y"]), (pb["x"], pb["y"])).points
         for u, v, s_yaw, g_yaw in ((a, b, pa["yaw"], pb["yaw"]), (b, a, pb["yaw"], pa["yaw"])):
             path = pts if u == a else pts[::-1]
-            secs[u, v] = profile_limit(path, MotionLimits(), s_yaw, g_yaw)
-            metres[u, v] = path_length(path)
+            secs[u, v] = float(profile_limit(path, MotionLimits(), s_yaw, g_yaw))
+            metres[u, v] = float(path_length(path))
     for n in names:
         secs[n, n] = metres[n, n] = 0.0
     return Site("home", lambda u, v: secs[u, v], lambda u, v: metres[u, v], load_s=20.0, serve_s=15.0), names
@@ -100,11 +99,11 @@ def run(quick: bool = False) -> list[dict]:
                 ref = res[NearestIdle][metric]
                 goal = met = None
                 if metric == "wait s, mean":
-                    goal, met = "<= 0.8x baseline", ours <= 0.8 * ref
-                rows.append({"bench": "dispatch", "case": case, "metric": metric, "ours": ours, "reference": ref,
+                    goal, met = "<= 0.8x baseline", bool(ours <= 0.8 * ref)
+                rows.append({"bench": "dispatch", "case": case, "metric": metric, "ours": float(ours), "reference": float(ref),
                              "reference_name": "nearest idle, one order per trip", "goal": goal, "met": met})
     for rate_name in ("one robot busy", "3x that"):
-        ratio = per_hour[rate_name, 3] / per_hour[rate_name, 1]
+        ratio = float(per_hour[rate_name, 3] / per_hour[rate_name, 1])
         rows.append({"bench": "dispatch", "case": f"hotel, throughput of 3 robots / 1 robot ({rate_name})",
                      "metric": "ratio", "ours": ratio, "reference": None, "reference_name": None,
                      "goal": ">= 2.5" if rate_name == "3x that" else None,

@@ -39,7 +39,6 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
-
 STOPS_CACHE = 10000     # visiting orders remembered by the planner (a few MB at most)
 
 
