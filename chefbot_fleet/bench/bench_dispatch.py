@@ -100,8 +100,9 @@ def run(quick: bool = False) -> list[dict]:
                 goal = met = None
                 if metric == "wait s, mean":
                     goal, met = "<= 0.8x baseline", bool(ours <= 0.8 * ref)
-                rows.append({"bench": "dispatch", "case": case, "metric": metric, "ours": float(ours), "reference": float(ref),
-                             "reference_name": "nearest idle, one order per trip", "goal": goal, "met": met})
+                rows.append({"bench": "dispatch", "case": case, "metric": metric, "ours": float(ours),
+                             "reference": float(ref), "reference_name": "nearest idle, one order per trip",
+                             "goal": goal, "met": met})
     for rate_name in ("one robot busy", "3x that"):
         ratio = float(per_hour[rate_name, 3] / per_hour[rate_name, 1])
         rows.append({"bench": "dispatch", "case": f"hotel, throughput of 3 robots / 1 robot ({rate_name})",
