@@ -26,6 +26,10 @@ that robot's orders (:meth:`Planner.insert`).  An order naming a robot goes to t
 This is the insertion heuristic of dial-a-ride planning; Open-RMF's task allocation uses the same
 cost (sum of finish times minus earliest starts).
 
+A robot that breaks down, stops reporting or is paused by staff gives back every order it has not
+served (:func:`withdraw`: its waiting trips' and the unserved ones of the trip it is on) and is
+marked unavailable; those orders are inserted again, onto the robots still in service.
+
 Baselines for the benchmark (:class:`NearestIdle`): one order per trip, first come first served, each
 to the robot that is free first (the nearest idle robot when all wait at the kitchen).
 
@@ -105,6 +109,7 @@ class Schedule:
     pending: list[Trip] = field(default_factory=list)
     served: dict[str, float] = field(default_factory=dict)   # order id -> when its last table was served
     metres: float = 0.0                                      # driven so far (simulate)
+    available: bool = True      # False: broken down, paused by staff or charging; nothing new is planned for it
 
 
 def completion_times(site: Site, start: str, t0: float, trip: Trip,
@@ -190,7 +195,7 @@ class Planner:
         schedule it went to.  Raises DispatchError when no robot may take it."""
         best: tuple[float, str, Schedule, list[Trip], list[list[str]]] | None = None
         for sch in schedules:
-            if order.robot and order.robot != sch.robot:
+            if not sch.available or (order.robot and order.robot != sch.robot):
                 continue
             before, _ = schedule_cost(self.site, sch, now, orders=self.stops)
             for option in self._options(order, sch):
@@ -238,7 +243,7 @@ class NearestIdle:
             for trip in sch.pending:
                 _, t, place = completion_times(self.site, place, t, trip, trip.stops)
             return t + self.site.travel(place, self.site.kitchen)
-        fit = [s for s in schedules if not order.robot or s.robot == order.robot]
+        fit = [s for s in schedules if s.available and (not order.robot or s.robot == order.robot)]
         if not fit:
             raise DispatchError(_nobody(order))
         sch = min(fit, key=lambda s: (ready(s), s.robot))
@@ -263,6 +268,32 @@ def advance(site: Site, sch: Schedule, now: float) -> None:
         sch.free_at = now
 
 
+def withdraw(sch: Schedule, now: float) -> list[Order]:
+    """Take back every order ``sch``'s robot has not served by ``now`` s -- its waiting trips' and the
+    unserved ones of the trip it is on (its plates must be made again) -- oldest first, for planning
+    onto the other robots: the robot broke down or stopped reporting, or staff paused it.  It stands
+    free from ``now`` (where it is stays its last place; the metres of a cut-short trip count whole)."""
+    back = [o for trip in sch.pending for o in trip.orders]
+    sch.pending = []
+    if sch.current is not None and sch.free_at > now:
+        for o in sch.current.orders:
+            if sch.served.get(o.id, math.inf) > now:
+                back.append(o)
+                sch.served.pop(o.id, None)
+        sch.current = None
+        sch.free_at = now
+    return sorted(back, key=lambda o: (o.created, o.id))
+
+
+@dataclass(frozen=True)
+class Outage:
+    """A robot out of service from ``start`` until ``end`` s (:func:`simulate`); back at the kitchen."""
+
+    robot: str
+    start: float
+    end: float
+
+
 @dataclass(frozen=True)
 class Outcome:
     """:func:`simulate`'s figures: every order's wait (s), the last plate's time, metres driven."""
@@ -278,27 +309,62 @@ class Outcome:
 
 
 def simulate(site: Site, policy: Planner | NearestIdle, orders: Sequence[Order], robots: Sequence[str],
-             capacity: int = 3, start: str | None = None) -> Outcome:
+             capacity: int = 3, start: str | None = None, outages: Sequence[Outage] = ()) -> Outcome:
     """Play ``orders`` (by creation time) through ``policy`` with ``robots`` waiting at ``start`` (the
-    kitchen) at time 0; every robot drives its schedule exactly."""
+    kitchen) at time 0; every robot drives its schedule exactly.  During an ``outage`` a robot's
+    unserved orders are planned onto the others at once (:func:`withdraw`); orders no robot may take
+    wait until one is back.  DispatchError if an order is lost or served twice."""
     if not robots:
         raise DispatchError("simulate: no robots")
     ids = [o.id for o in orders]
     if len(set(ids)) != len(ids):
         raise DispatchError("simulate: order ids must be unique")
-    schedules = [Schedule(r, start or site.kitchen, 0.0, capacity) for r in robots]
-    for order in sorted(orders, key=lambda o: o.created):
-        for sch in schedules:
-            advance(site, sch, order.created)
-        policy.insert(order, schedules, order.created)
-        for sch in schedules:
-            advance(site, sch, order.created)
-    for sch in schedules:
+    schedules = {r: Schedule(r, start or site.kitchen, 0.0, capacity) for r in robots}
+    for out in outages:
+        if out.robot not in schedules or not out.start <= out.end:
+            raise DispatchError(f"simulate: bad outage {out} (robots {list(robots)})")
+    # events in time order; at equal times robots come back, then break down, then orders arrive
+    events = sorted([(o.created, 2, k, o) for k, o in enumerate(orders)]
+                    + [(x.start, 1, k, x) for k, x in enumerate(outages)]
+                    + [(x.end, 0, k, x) for k, x in enumerate(outages)], key=lambda e: e[:3])
+    waiting: list[Order] = []            # orders no robot could take (all out of service)
+
+    def plan(order: Order, t: float) -> None:
+        try:
+            policy.insert(order, schedules.values(), t)
+        except DispatchError:
+            waiting.append(order)
+
+    for t, kind, _, what in events:
+        for sch in schedules.values():
+            advance(site, sch, t)
+        if kind == 2:
+            plan(what, t)
+        elif kind == 1:
+            sch = schedules[what.robot]
+            sch.available = False
+            for order in withdraw(sch, t):
+                plan(order, t)
+        else:
+            sch = schedules[what.robot]
+            if not sch.available and not any(x.robot == what.robot and x.start <= t < x.end for x in outages):
+                sch.available, sch.place, sch.free_at = True, site.kitchen, max(sch.free_at, t)
+                again, waiting[:] = list(waiting), []
+                for order in again:
+                    plan(order, t)
+        for sch in schedules.values():
+            advance(site, sch, t)
+    for sch in schedules.values():
         advance(site, sch, math.inf)
-    served = {k: v for sch in schedules for k, v in sch.served.items()}
+    served: dict[str, float] = {}
+    for sch in schedules.values():
+        for k, v in sch.served.items():
+            if k in served:
+                raise DispatchError(f"simulate: order {k} served twice")
+            served[k] = v
     missing = set(ids) - set(served)
     if missing:
         raise DispatchError(f"simulate: orders never served: {sorted(missing)}")
     by_id = {o.id: o for o in orders}
     return Outcome({k: served[k] - by_id[k].created for k in ids}, max(served.values(), default=0.0),
-                   sum(s.metres for s in schedules))
+                   sum(s.metres for s in schedules.values()))

@@ -11,6 +11,7 @@ from chefbot_fleet.dispatch import (
     DispatchError,
     NearestIdle,
     Order,
+    Outage,
     Planner,
     Schedule,
     Site,
@@ -19,6 +20,7 @@ from chefbot_fleet.dispatch import (
     best_order,
     completion_times,
     simulate,
+    withdraw,
 )
 
 X = {"kitchen": 0.0, "t_west": -10.0, "t_near": 5.0, "t_mid": 10.0, "t_far": 20.0, "t_east": 30.0}
@@ -161,3 +163,43 @@ def test_simulate_refuses_what_it_cannot_run() -> None:
     dup = [Order("o1", ("t_mid",), 0.0), Order("o1", ("t_far",), 1.0)]
     with pytest.raises(DispatchError, match="unique"):
         simulate(site, Planner(site), dup, ["chefbot1"])
+
+
+def test_a_robot_out_of_service_gives_back_what_it_has_not_served() -> None:
+    site = line_site()
+    planner = Planner(site)
+    sch = Schedule("chefbot1", "kitchen", 0.0, capacity=2)
+    for oid, table in (("near", "t_near"), ("far", "t_east")):
+        planner.insert(Order(oid, (table,), 0.0), [sch], 0.0)
+    advance(site, sch, 0.0)
+    planner.insert(Order("next", ("t_mid",), 1.0), [sch], 1.0)
+    served_near = sch.served["near"]
+    assert served_near < sch.served["far"]
+    back = withdraw(sch, served_near + 1.0)               # broke down between the two tables
+    assert [o.id for o in back] == ["far", "next"]
+    assert sch.served == {"near": served_near} and sch.current is None and not sch.pending
+    sch.available = False
+    other = Schedule("chefbot2", "kitchen", 0.0)
+    assert planner.insert(back[0], [sch, other], served_near + 1.0) is other
+    with pytest.raises(DispatchError, match="no robot"):
+        NearestIdle(site).insert(back[1], [sch], served_near + 1.0)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_outages_lose_no_order_and_serve_none_twice(seed: int) -> None:
+    """Random breakdowns (one robot, or all at once): every order is served exactly once (simulate
+    raises otherwise), by both policies."""
+    site = line_site()
+    rng = np.random.default_rng(100 + seed)
+    orders = stream(25, 1 / 40.0, seed)
+    robots = ["chefbot1", "chefbot2", "chefbot3"]
+    outages = []
+    for _ in range(4):
+        t = float(rng.uniform(0.0, orders[-1].created))
+        who = robots if rng.random() < 0.25 else [robots[int(rng.integers(3))]]
+        outages += [Outage(r, t, t + float(rng.uniform(30.0, 400.0))) for r in who]
+    for policy in (Planner(site), NearestIdle(site)):
+        out = simulate(site, policy, orders, robots, outages=outages)
+        assert set(out.waits) == {o.id for o in orders}
+    with pytest.raises(DispatchError, match="bad outage"):
+        simulate(site, Planner(site), orders, robots, outages=[Outage("chefbot9", 0.0, 1.0)])
