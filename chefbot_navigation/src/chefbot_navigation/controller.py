@@ -30,7 +30,7 @@ import numpy as np
 from scipy import ndimage
 
 from chefbot_common.geometry import Pose2D, wrap_angle
-from chefbot_navigation.costmap import INSCRIBED, LETHAL, Costmap
+from chefbot_navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap
 
 XY_RELEASE = 2.0   # x xy_goal_tolerance: a reached position is given up only this far from the goal
 NO_ROOM_TO_TURN = "no room to turn on the spot"   # the detail of a command blocked by a turn (Navigator escapes)
@@ -166,10 +166,12 @@ class RegulatedPurePursuit:
         i, k = hit[0]
         return True, (float(px[i, k]), float(py[i, k]))
 
-    def without_touched(self, costmap: Costmap, pose: Pose2D, slack: float = TOUCH_SLACK) -> Costmap:
+    def without_touched(self, costmap: Costmap, pose: Pose2D, slack: float = TOUCH_SLACK,
+                        unknown: bool = False) -> Costmap:
         """``costmap`` with the lethal cells within ``slack`` m of the footprint at ``pose`` made free: what
         the robot already (nearly) touches -- a bump, a mislocalisation, a wedge in a gap's mouth -- may
-        be brushed on the way out, but nothing it has not reached."""
+        be brushed on the way out, but nothing it has not reached.  ``unknown``: unknown cells are free
+        too (all of them)."""
         if self.footprint_pts is None:
             return costmap
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
@@ -182,6 +184,8 @@ class RegulatedPurePursuit:
         near = ndimage.binary_dilation(near, iterations=max(int(math.ceil(slack / costmap.info.resolution)), 1))
         cost = costmap.cost.copy()
         cost[near & (cost == LETHAL)] = 0
+        if unknown:
+            cost[cost == NO_INFORMATION] = 0
         return Costmap(costmap.info, cost)
 
     def rotation_collides(self, pose: Pose2D, angle: float, costmap: Costmap) -> tuple[bool, tuple | None]:
@@ -194,8 +198,12 @@ class RegulatedPurePursuit:
         here = self.poses_collide(np.array([pose.x]), np.array([pose.y]), np.array([pose.yaw]), costmap)[0]
         if here:
             # turning may free it, so do not freeze; but a robot touching one side of a narrow aisle used to
-            # turn freely until its camera bar wedged it diagonally, where it could neither turn nor back out
-            costmap = self.without_touched(costmap, pose)
+            # turn freely until its camera bar wedged it diagonally, where it could neither turn nor back out.
+            # Unknown space does not stop it: exploring, a robot stands at the edge of what it has seen (the
+            # camera sees nothing nearer than 0.45 m) and, touching unknown cells, could not turn at all: it
+            # stood "blocked: no room to turn" until the explorer gave its goal up (20-30 s each time,
+            # slam_workflow_hotel in CI), where before this rule it turned freely
+            costmap = self.without_touched(costmap, pose, unknown=True)
         return self.poses_collide(np.full(n, pose.x), np.full(n, pose.y), yaws, costmap)
 
     def reset(self) -> None:

@@ -14,6 +14,7 @@ from unicycle_nav import Run, dead_end_map, slot_map
 from chefbot_common.geometry import Pose2D
 from chefbot_common.map_io import load_map
 from chefbot_common.tables import load_tables
+from chefbot_navigation.costmap import NO_INFORMATION, Costmap
 from chefbot_navigation.navigator import Goal
 from chefbot_navigation.time_limit import MotionLimits, profile_limit
 
@@ -129,6 +130,19 @@ def test_turning_on_the_spot_is_checked_with_the_footprint(urdf: str) -> None:
     assert ctrl.poses_collide(np.array([3.0]), np.array([1.545]), np.array([0.0]), inside)[0]
     assert ctrl.rotation_collides(touching, math.pi / 2, inside)[0]
     assert not ctrl.rotation_collides(touching, 0.02, inside)[0]
+    # at the edge of what it has seen (exploring: unknown cells beside it, nearer than the camera can see):
+    # touching unknown space, it may turn into it; not touching it, a turn that sweeps into it is refused
+    edge = Costmap(open_area.info, open_area.cost.copy())
+    row, col = edge.info.world_to_cell(1.2, 1.5)
+    edge.cost[:, int(col) + 3:] = NO_INFORMATION            # unknown from 0.15-0.2 m ahead of the centre
+    assert ctrl.poses_collide(np.array([1.2]), np.array([1.5]), np.array([0.0]), edge)[0]
+    assert ctrl.rotation_collides(Pose2D(1.2, 1.5, 0.0), math.pi / 2, edge) == (False, None)
+    # facing away from it, clear of it, nearer than the camera bar reaches: turning round sweeps into it
+    front, back = ctrl.footprint_pts[:, 0].max(), -ctrl.footprint_pts[:, 0].min()
+    boundary = edge.info.origin_x + (int(col) + 3) * edge.info.resolution
+    away = Pose2D(boundary - (front + back) / 2.0, 1.5, math.pi)
+    assert not ctrl.poses_collide(np.array([away.x]), np.array([away.y]), np.array([away.yaw]), edge)[0]
+    assert ctrl.rotation_collides(away, math.pi, edge)[0]
     ctrl.set_footprint(None)     # a round robot: turning sweeps nothing new
     assert ctrl.rotation_collides(Pose2D(3.0, 1.5, 0.0), math.pi / 2, inside) == (False, None)
 
