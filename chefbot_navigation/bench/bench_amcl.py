@@ -217,12 +217,17 @@ def track_route(quick: bool = False, seed: int = 0, overrides: dict | None = Non
         sim.close()
 
 
-def _turn_until_localized(rig: SimRig, amcl: Amcl, limit: float, kidnap_after: float | None = None) -> float:
-    """Turn in place at 0.6 rad/s feeding every depth frame to ``amcl``; sim s from the start (or,
-    with ``kidnap_after``, from the 3 m teleport done that many sim s in) until amcl's error is within
-    0.25 m / 0.25 rad and stays there for 2 s; inf if not within ``limit`` s."""
+def _turn_until_localized(rig: SimRig, amcl: Amcl, limit: float, kidnap_after: float | None = None,
+                          lidar: bool = False, hold: float = 2.0) -> float:
+    """Turn in place at 0.6 rad/s feeding every depth frame (``lidar``: every lidar scan) to ``amcl``;
+    sim s from the start (or, with ``kidnap_after``, from the 3 m teleport done that many sim s in)
+    until amcl's error is within 0.25 m / 0.25 rad and stays there for ``hold`` s (0: the first time,
+    amcl_sim.test's criterion); inf if not within ``limit`` s."""
     from chefbot_common.geometry import Pose2D as WorldPose
     sim, ok_since = rig.sim, None
+    kind = "lidar" if lidar else "depth"
+    if lidar:
+        laser, angles = rig.frame_in_base(sim.lidar.frame), sim.lidar.angles()
     t_ref = sim.time if kidnap_after is None else None      # when the clock of the figure starts
     while t_ref is None or sim.time - t_ref < limit:
         if t_ref is None and sim.time > kidnap_after:
@@ -233,18 +238,22 @@ def _turn_until_localized(rig: SimRig, amcl: Amcl, limit: float, kidnap_after: f
         for e in sim.step(6):
             if e.kind == "odom":
                 rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
-            elif e.kind == "depth":
-                ranges, angles = rig.scan(e.data)
+            elif e.kind == kind:
                 try:
-                    amcl.update(rig.odom, ranges, angles, 0.45, 8.0, rig.laser, e.stamp)
+                    if lidar:
+                        amcl.update(rig.odom, e.data["ranges"], angles, sim.lidar.range_min, sim.lidar.range_max,
+                                    laser, e.stamp)
+                    else:
+                        ranges, depth_angles = rig.scan(e.data)
+                        amcl.update(rig.odom, ranges, depth_angles, 0.45, 8.0, rig.laser, e.stamp)
                 except ValueError:
                     pass
-                if t_ref is None or amcl.map_T_odom is None or amcl.updates < 2:
+                if t_ref is None or amcl.map_T_odom is None or amcl.updates < 2 or e.stamp <= t_ref:
                     continue
                 est, gt = amcl.map_T_odom.compose(rig.odom), rig.truth()
                 ok = est.distance(gt) <= 0.25 and abs(wrap_angle(est.yaw - gt.yaw)) <= 0.25
                 ok_since = (ok_since if ok_since is not None else e.stamp) if ok else None
-                if ok_since is not None and e.stamp - ok_since >= 2.0:
+                if ok_since is not None and e.stamp - ok_since >= hold:
                     return ok_since - t_ref
     return math.inf
 
@@ -280,43 +289,18 @@ def lidar_turning(seed: int, kidnap: bool, limit: float = 30.0, overrides: dict 
     amcl_sim_lidar.test: sim s from global_localization (``kidnap`` False) or from a 3 m kidnap after
     8 s of tracking until amcl's error is first within 0.25 m / 0.25 rad (the test's criterion); inf
     if not within ``limit``."""
-    from chefbot_common.geometry import Pose2D as WorldPose
     rig = SimRig(Pose2D(0.0, 0.0, 0.0), seed, xacro_args={"lidar": "270"}, lidar_fov=270.0, lidar_rate=10.0)
-    sim = rig.sim
     for kind in ("depth", "cliff"):
-        sim.set_enabled(kind, False)
-    laser, angles = rig.frame_in_base(sim.lidar.frame), sim.lidar.angles()
+        rig.sim.set_enabled(kind, False)
     start = {} if not kidnap else {"initial_cov_xx": 0.01, "initial_cov_yy": 0.01, "initial_cov_aa": 0.01}
     amcl = Amcl(amcl_config(seed=seed, **start, **(overrides or {})))
     amcl.set_map(load_map(MAPS / "hotel_world_map.yaml"))
-    t_ref = None
     if not kidnap:
         amcl.global_localization()
-        t_ref = sim.time
     try:
-        while t_ref is None or sim.time - t_ref < limit:
-            if t_ref is None and sim.time > 8.0:
-                gt = rig.truth()
-                sim.teleport(WorldPose(gt.x, gt.y + 3.0, gt.yaw))
-                t_ref = sim.time
-            sim.set_cmd_vel(0.0, 0.6)
-            for e in sim.step(6):
-                if e.kind == "odom":
-                    rig.odom = Pose2D(e.data["x"], e.data["y"], e.data["yaw"])
-                elif e.kind == "lidar":
-                    try:
-                        amcl.update(rig.odom, e.data["ranges"], angles, sim.lidar.range_min, sim.lidar.range_max,
-                                    laser, e.stamp)
-                    except ValueError:
-                        pass
-                    if t_ref is None or amcl.map_T_odom is None or e.stamp <= t_ref:
-                        continue
-                    est, gt = amcl.map_T_odom.compose(rig.odom), rig.truth()
-                    if est.distance(gt) <= 0.25 and abs(wrap_angle(est.yaw - gt.yaw)) <= 0.25:
-                        return e.stamp - t_ref
-        return math.inf
+        return _turn_until_localized(rig, amcl, limit, kidnap_after=8.0 if kidnap else None, lidar=True, hold=0.0)
     finally:
-        sim.close()
+        rig.sim.close()
 
 
 def _lidar_rows(quick: bool) -> list[dict]:
