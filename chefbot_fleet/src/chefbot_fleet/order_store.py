@@ -161,6 +161,7 @@ class OrderStore:
         return _Tx()
 
     def close(self) -> None:
+        """Close the file (every change is already committed)."""
         self._db.close()
 
     # ------------------------------------------------------------------ orders
