@@ -153,18 +153,28 @@ def best_order(site: Site, trip: Trip, exact_stops: int = 6) -> list[str]:
     return order
 
 
+def _drive(site: Site, sch: Schedule, now: float, trips: list[Trip],
+           stops_of: Callable[[Trip], list[str]]) -> tuple[float, list[list[str]], float, str]:
+    """``trips`` driven one after the other once ``sch``'s robot is free (from ``now`` at the earliest),
+    each along ``stops_of(trip)``: (weighted sum of their orders' waits, each trip's stops, when the
+    robot is free after them, where)."""
+    cost, stops = 0.0, []
+    place, t = sch.place, max(sch.free_at, now)
+    for trip in trips:
+        s = stops_of(trip)
+        done, t, place = completion_times(site, place, t, trip, s)
+        cost += _weighted_wait(trip, done)
+        stops.append(s)
+    return cost, stops, t, place
+
+
 def schedule_cost(site: Site, sch: Schedule, now: float, pending: list[Trip] | None = None,
                   orders: Callable[[Trip], list[str]] | None = None) -> tuple[float, list[list[str]]]:
     """(weighted sum of the waits of the orders in ``pending`` (default: the schedule's), driven after
     the trip the robot is on, from ``now`` at the earliest; each of those trips' stops).  ``orders``
     gives a trip's stops (default :func:`best_order`)."""
-    cost, stops = 0.0, []
-    place, t = sch.place, max(sch.free_at, now)
-    for trip in (sch.pending if pending is None else pending):
-        s = (orders or (lambda tr: best_order(site, tr)))(trip)
-        done, t, place = completion_times(site, place, t, trip, s)
-        cost += _weighted_wait(trip, done)
-        stops.append(s)
+    cost, stops, _, _ = _drive(site, sch, now, sch.pending if pending is None else pending,
+                               orders or (lambda tr: best_order(site, tr)))
     return cost, stops
 
 
@@ -239,15 +249,15 @@ class NearestIdle:
     def insert(self, order: Order, schedules: Iterable[Schedule], now: float) -> Schedule:
         """Append ``order`` as a trip of its own to the robot that is back at the kitchen first."""
         def ready(sch: Schedule) -> float:
-            place, t = sch.place, max(sch.free_at, now)
-            for trip in sch.pending:
-                _, t, place = completion_times(self.site, place, t, trip, trip.stops)
+            _, _, t, place = _drive(self.site, sch, now, sch.pending, lambda trip: trip.stops)
             return t + self.site.travel(place, self.site.kitchen)
         fit = [s for s in schedules if s.available and (not order.robot or s.robot == order.robot)]
         if not fit:
             raise DispatchError(_nobody(order))
         sch = min(fit, key=lambda s: (ready(s), s.robot))
-        sch.pending.append(Trip([order], Trip([order]).tables()))
+        trip = Trip([order])
+        trip.stops = trip.tables()
+        sch.pending.append(trip)
         return sch
 
 
