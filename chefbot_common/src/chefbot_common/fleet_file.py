@@ -5,13 +5,15 @@ One file per site, beside its map and tables file in ``chefbot_navigation/maps/`
 
     frame: map
     site: hotel
+    kitchen: {x: -1.6, y: -3.5, yaw: 3.1416}   # optional: where the dispatcher's robots load plates
     robots:
       - name: chefbot1
         parking: {x: 0.0, y: 0.0, yaw: 0.0}   # where it waits when it has nothing to do
         start: {x: 0.0, y: 0.0, yaw: 0.0}     # where it is switched on (default: its parking pose)
         charger: {x: -2.6, y: 1.0, yaw: 3.1416}   # optional: its charging pose
 
-Poses are in the site map's frame (m, rad; ``yaw`` defaults to 0).  Names are the robots'
+Poses are in the site map's frame (m, rad; ``yaw`` defaults to 0).  The kitchen pose (read by
+:func:`load_kitchen`) is one robot's at a time, so it must be clear of every robot's poses.  Names are the robots'
 ROS namespaces, so they must be ROS graph names without a slash (``chefbot1``, ``tray_bot``).
 The simulator starts robot *i* of ``robots:=N`` at the *i*-th entry's start pose; the fleet
 nodes read the rest.  :class:`FleetFileError` names the file and the entry of anything wrong,
@@ -53,7 +55,7 @@ def load_fleet(path: str | Path, min_apart: float = MIN_APART) -> list[FleetRobo
     data = read_yaml_file(path, "fleet file", FleetFileError)
     if not isinstance(data, dict) or not isinstance(data.get("robots"), list):
         raise FleetFileError(f"{path}: expected a mapping with a 'robots' list")
-    unknown = set(data) - {"frame", "site", "robots"}
+    unknown = set(data) - {"frame", "site", "robots", "kitchen"}
     if unknown:
         raise FleetFileError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
     if data.get("frame", "map") != "map":
@@ -67,7 +69,30 @@ def load_fleet(path: str | Path, min_apart: float = MIN_APART) -> list[FleetRobo
         raise FleetFileError(f"{path}: robot name(s) {twice} listed twice")
     for kind in ("parking", "start", "charger"):
         _check_apart(robots, kind, min_apart, path)
+    kitchen = _kitchen(data, path)
+    if kitchen is not None:
+        for r in robots:
+            for kind in ("parking", "start", "charger"):
+                pose = getattr(r, kind)
+                if pose is not None and pose.distance(kitchen) < min_apart:
+                    raise FleetFileError(f"{path}: the kitchen is {pose.distance(kitchen):.2f} m from {r.name}'s {kind} "
+                                         f"pose, closer than {min_apart:g} m: a robot standing there would block it")
     return robots
+
+
+def load_kitchen(path: str | Path) -> Pose2D | None:
+    """The fleet file's kitchen pose (None when it has none); the file is checked as :func:`load_fleet`."""
+    load_fleet(path)
+    return _kitchen(read_yaml_file(Path(path), "fleet file", FleetFileError), Path(path))
+
+
+def _kitchen(data: dict, path: Path) -> Pose2D | None:
+    if data.get("kitchen") is None:
+        return None
+    try:
+        return parse_pose(data["kitchen"], f"{path}: kitchen")
+    except TablesError as e:
+        raise FleetFileError(str(e)) from None
 
 
 def _robot(entry: object, where: str) -> FleetRobot:

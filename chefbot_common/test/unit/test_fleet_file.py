@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from chefbot_common.fleet_file import FleetFileError, load_fleet, select
+from chefbot_common.fleet_file import FleetFileError, load_fleet, load_kitchen, select
 from chefbot_common.geometry import Pose2D
 
 MAPS = Path(__file__).resolve().parents[3] / "chefbot_navigation" / "maps"
@@ -35,6 +35,13 @@ def test_the_shipped_fleet_files_load_with_three_robots(site: str) -> None:
     robots = load_fleet(MAPS / f"{site}_fleet.yaml")
     assert [r.name for r in robots] == ["chefbot1", "chefbot2", "chefbot3"]
     assert all(r.charger is not None for r in robots)
+    assert load_kitchen(MAPS / f"{site}_fleet.yaml") is not None
+
+
+def test_the_kitchen_is_optional_and_clear_of_the_robots(tmp_path: Path) -> None:
+    assert load_kitchen(write(tmp_path, "robots: [{name: a, parking: {x: 0, y: 0}}]")) is None
+    assert load_kitchen(write(tmp_path, "kitchen: {x: 2, y: 1, yaw: 3.0}\nrobots: [{name: a, parking: {x: 0, y: 0}}]")) \
+        == Pose2D(2.0, 1.0, 3.0)
 
 
 @pytest.mark.parametrize("text, match", [
@@ -55,6 +62,8 @@ def test_the_shipped_fleet_files_load_with_three_robots(site: str) -> None:
     ("robots: [{name: a, parking: {x: 0, y: 0}, charger: {x: 3, y: 3}},"
      " {name: b, parking: {x: 1, y: 0}, charger: {x: 3, y: 3.1}}]", "charger poses of a and b"),
     ("robots: [\n  - {name: a, parking: {x: 0, y: 0}", "invalid YAML"),
+    ("kitchen: {x: 0.2, y: 0}\nrobots: [{name: a, parking: {x: 0, y: 0}}]", "kitchen is 0.20 m from a's parking"),
+    ("kitchen: {y: 0}\nrobots: [{name: a, parking: {x: 0, y: 0}}]", "kitchen: missing field 'x'"),
 ])
 def test_bad_files_are_named(tmp_path: Path, text: str, match: str) -> None:
     with pytest.raises(FleetFileError, match=match) as e:
