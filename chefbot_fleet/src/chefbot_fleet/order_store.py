@@ -84,7 +84,8 @@ class Event:
 
 class OrderStore:
     """The orders in the SQLite file ``path`` (created with its parent directories if missing).
-    ``timeout`` (s): how long to wait for another process's lock before :class:`StoreError`."""
+    ``timeout`` (s): how long to wait for another process's lock before :class:`StoreError`.  Any
+    thread may call it, one at a time (the caller holds a lock)."""
 
     def __init__(self, path: str | Path, timeout: float = 2.0) -> None:
         self.path = Path(path)
@@ -93,7 +94,8 @@ class OrderStore:
         except OSError as exc:
             raise StoreError(f"order database {self.path}: cannot create its directory: {exc}") from exc
         try:
-            self._db = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None)
+            # any thread may use it (the dispatcher node's callbacks), one at a time: the caller serialises
+            self._db = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None, check_same_thread=False)
         except sqlite3.Error as exc:
             raise StoreError(f"order database {self.path}: cannot open it: {exc}") from exc
         try:
@@ -215,6 +217,13 @@ class OrderStore:
         """Every order (``open_only``: those not in a final state), oldest first."""
         where = f" WHERE state NOT IN ({','.join('?' * len(FINAL))})" if open_only else ""
         return [_order(r) for r in self._query(f"SELECT * FROM orders{where} ORDER BY seq", FINAL if open_only else ())]
+
+    def latest(self, n: int, final_only: bool = False) -> list[StoredOrder]:
+        """The ``n`` newest orders (``final_only``: of those served, cancelled or failed), oldest first."""
+        where = f" WHERE state IN ({','.join('?' * len(FINAL))})" if final_only else ""
+        rows = self._query(f"SELECT * FROM orders{where} ORDER BY seq DESC LIMIT ?",
+                           (*(FINAL if final_only else ()), int(n)))
+        return [_order(r) for r in reversed(rows)]
 
     def history(self, order_id: str) -> list[Event]:
         """The order's states in the order they were taken."""

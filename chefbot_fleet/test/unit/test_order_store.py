@@ -30,6 +30,8 @@ def test_a_restarted_store_has_the_same_queue_and_histories(tmp_path) -> None:
     assert [(e.state, e.robot) for e in again.history("o1")] == [("queued", ""), ("assigned", "chefbot1"),
                                                                   ("loading", "chefbot1")]
     assert again.add(["table_2"], 30.0).id == "o4"           # ids go on, never reused
+    assert [o.id for o in again.latest(2)] == ["walk-in", "o4"]
+    assert [o.id for o in again.latest(5, final_only=True)] == ["o2"]
     again.close()
 
 
