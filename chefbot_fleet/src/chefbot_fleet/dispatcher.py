@@ -21,8 +21,9 @@ A robot's trip, leg by leg::
   fault, paused by staff, or not heard from for ``stale_s`` (``offline``) gives back every order it
   has not served (:func:`~chefbot_fleet.dispatch.withdraw`): they become ``queued`` again, with the
   reason, and are planned onto the robots still in service at once; plates already on board must be
-  made again.  A paused or faulty robot takes orders again after ``resume``; an offline one as soon
-  as it reports again.
+  made again.  A paused robot takes orders again after ``resume``; an offline one as soon as it
+  reports again; one in fault after ``resume``, or by itself ``recover_s`` later when it reaches its
+  parking pose (a passing cause: another robot in the way, a localization upset).
 * **charge**: the robot finishes the trip it is on, gives back its waiting trips, drives to its
   charger and stays there (``charging``) until ``resume``.
 * **Cancelling** an order takes it out of its trip; a robot carrying its plates skips its tables
@@ -84,6 +85,7 @@ class Config:
     retry_wait_s: float = 5.0
     stale_s: float = 10.0
     stall_s: float = 90.0
+    recover_s: float = 60.0     # a robot in fault is sent to its parking pose after this long (0: only staff resume it)
     keep_final: int = 50        # final orders kept in the published queue
 
     def __post_init__(self) -> None:
@@ -93,6 +95,8 @@ class Config:
             raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {self.policy!r}")
         if self.retries < 0:
             raise ValueError(f"retries must be >= 0, got {self.retries}")
+        if not (math.isfinite(self.recover_s) and self.recover_s >= 0):
+            raise ValueError(f"recover_s must be a number >= 0, got {self.recover_s}")
         for name in ("retry_wait_s", "stale_s", "stall_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -122,6 +126,7 @@ class Robot:
     moved_from: Pose2D | None = None
     retry_place: str = ""        # the leg to send again when wait_until passes (state 'retrying')
     charge_after: bool = False   # staff asked it to charge after its trip
+    fault_since: float = 0.0     # when it went into fault
 
     @property
     def here(self) -> str:
@@ -287,6 +292,11 @@ class Dispatcher:
                 r.leg = 0
                 self._leg_failed(r, f"has not moved for {now - r.moved_at:.0f} s", now)
                 continue
+            if r.state == "fault" and self.cfg.recover_s > 0 and now - r.fault_since >= self.cfg.recover_s:
+                # a leg that failed for a passing reason (another robot in the way, a localization upset)
+                # should not keep the robot out for good: if it reaches its parking pose it is back in service
+                self._send(r, "parking", r.parking, now)
+                continue
             if r.wait_until > now:
                 continue
             if r.state == "loading":
@@ -298,6 +308,8 @@ class Dispatcher:
             elif r.state == "retrying":
                 r.state = r.retry_place
                 self._goto(r, r.place, now)
+        if self.waiting:
+            self._replan_waiting(now)
         for r in self.robots.values():
             if r.state in ("idle", "parking") and r.schedule.pending and self._kitchen_free():
                 self._start_trip(r, now)
@@ -511,7 +523,7 @@ class Dispatcher:
         if r.leg or r.state in ("to_kitchen", "delivering", "parking", "to_charger", "retrying"):
             self._commands.append(Stop(r.name))
         r.state, r.reason, r.leg, r.charge_after = state, why, 0, False
-        r.place = ""
+        r.place, r.fault_since = "", now
         self.changed = True
         for oid in back:
             self._plan(oid, now)

@@ -181,7 +181,7 @@ def test_a_robot_that_stops_reporting_mid_trip_gives_its_orders_to_the_other(tmp
 
 
 def test_a_robot_whose_goals_abort_is_retried_then_faulted_and_its_orders_move(tmp_path) -> None:
-    disp, world = make(tmp_path, retries=2, retry_wait_s=2.0)
+    disp, world = make(tmp_path, retries=2, retry_wait_s=2.0, recover_s=0.0)
     world.run_until(lambda: all(r.state == "idle" for r in disp.robots.values()), 60)
     oid = disp.deliver(["t8"], 1.0, "r1", world.t).id      # asks for r1 ...
     free = disp.deliver(["t2"], 1.0, "", world.t).id
@@ -342,3 +342,19 @@ def test_an_order_made_while_its_robot_drives_to_the_kitchen_joins_the_trip(tmp_
     world.run_until(lambda: disp.robots["r1"].state == "idle", 60)
     assert not [p for _, p, t in world.visits if t > cancelled_at and p == "kitchen"]
     assert disp.store.get(c).state == "cancelled"
+
+
+def test_a_robot_in_fault_tries_its_parking_pose_after_recover_s_and_is_back_in_service(tmp_path) -> None:
+    disp, world = make(tmp_path, robots=["r1"], retries=1, retry_wait_s=2.0, recover_s=30.0)
+    world.run_until(lambda: disp.robots["r1"].state == "idle", 60)
+    oid = disp.deliver(["t8"], 1.0, "", world.t).id
+    world.broken.add("r1")
+    world.run_until(lambda: disp.robots["r1"].state == "fault", 60)
+    faulted = world.t
+    assert disp.store.get(oid).state == "queued"            # nobody else: it waits, not lost
+    world.run_until(lambda: disp.robots["r1"].state != "fault", 60)
+    assert world.t - faulted >= 30.0 - 1e-9
+    world.run_until(lambda: disp.robots["r1"].state == "fault", 60)   # still broken: in fault again
+    world.broken.clear()
+    world.run_until(lambda: all_final(disp), 600)                      # the next try works: it serves
+    assert disp.store.get(oid).state == "served" and disp.store.get(oid).assigned == "r1"
