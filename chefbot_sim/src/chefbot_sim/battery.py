@@ -76,8 +76,8 @@ def open_circuit_voltage(cfg: BatteryConfig, soc: float) -> float:
 
 
 def discharge(cfg: BatteryConfig, soc: float, current: float, dt: float) -> float:
-    """State of charge after drawing ``current`` A for ``dt`` s (never below 0)."""
-    return max(soc - current * dt / (cfg.capacity_ah * 3600.0), 0.0)
+    """State of charge after drawing ``current`` A for ``dt`` s (negative: charging), within 0..1."""
+    return min(max(soc - current * dt / (cfg.capacity_ah * 3600.0), 0.0), 1.0)
 
 
 def terminal_voltage(cfg: BatteryConfig, soc: float, current: float) -> float:

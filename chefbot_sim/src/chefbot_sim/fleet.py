@@ -31,6 +31,7 @@ class RobotSpec:
     urdf_xml: str
     start: Pose2D
     options: SimOptions
+    charger: Pose2D | None = None      # where it charges (the fleet file's charger pose)
 
 
 class Fleet:
@@ -55,6 +56,7 @@ class Fleet:
             self.bullet.load_world(world)
             for r in robots:
                 self.sims.append(Simulator(r.urdf_xml, world, r.start, r.options, shared=self.bullet, name=r.name))
+                self.sims[-1].charger = r.charger
             self._check_apart()
         except BaseException:
             self.close()

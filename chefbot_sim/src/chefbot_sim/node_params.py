@@ -126,11 +126,12 @@ def pacing(firmware: bool, rtf: float) -> tuple[int, float | None]:
 
 @dataclass(frozen=True)
 class FleetMember:
-    """One robot of a simulated fleet: its name (namespace), model and start pose (world frame)."""
+    """One robot of a simulated fleet: its name (namespace), model, start and charger poses (world frame)."""
 
     name: str
     robot_description: str = field(repr=False)
     start: tuple[float, float, float]
+    charger: tuple[float, float, float] | None = None
 
 
 def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[FleetMember]:
@@ -149,7 +150,8 @@ def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[F
             raise ParamError(f"{r.name}/robot_description is not set: start the robot's model in namespace "
                              f"{r.name} (chefbot_description's robot_state.launch.xml with frame_prefix "
                              f"'{r.name}/')")
-        out.append(FleetMember(r.name, urdf, (r.start.x, r.start.y, r.start.yaw)))
+        charger = (r.charger.x, r.charger.y, r.charger.yaw) if r.charger is not None else None
+        out.append(FleetMember(r.name, urdf, (r.start.x, r.start.y, r.start.yaw), charger))
     return out
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import rospy
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, Range
+from sensor_msgs.msg import BatteryState, CameraInfo, Image, Imu, JointState, LaserScan, Range
 
 from chefbot_bringup.depth_scan import Scan
 from chefbot_bringup.odometry import OdometryState
@@ -93,6 +93,18 @@ def cliff_msgs(d: CliffData, stamp) -> list[Range]:
                        "max_range": float(d["max_range"][i]), "field_of_view": float(d["field_of_view"][i])},
                       stamp, frame, Range.INFRARED)
             for i, frame in enumerate(d["frames"])]
+
+
+def battery_msg(d: dict, stamp) -> BatteryState:
+    """The simulated pack (``Simulator`` reading ``battery``) as sensor_msgs/BatteryState: percentage is the
+    state of charge 0..1, current negative while discharging (the message's convention)."""
+    b = BatteryState(voltage=float(d["volts"]), current=-float(d["current"]), present=True,
+                     percentage=float(d["soc"]), capacity=float(d["capacity_ah"]),
+                     design_capacity=float(d["capacity_ah"]), charge=float(d["soc"] * d["capacity_ah"]))
+    b.header.stamp = stamp
+    b.power_supply_status = (BatteryState.POWER_SUPPLY_STATUS_CHARGING if d["charging"]
+                             else BatteryState.POWER_SUPPLY_STATUS_DISCHARGING)
+    return b
 
 
 def laser_scan_msg(d: LidarData, stamp) -> LaserScan:

@@ -46,7 +46,7 @@ BATTERY_STEPS = 24   # physics steps between battery updates (0.1 s of sim time)
 ROBOT_REACH = 0.35   # m: bound on a robot body's extent from its base_footprint in the plane (ChefBot:
                      # 0.178 m base; a margin for other shapes): rays passing farther are not cast
 SENSORS = ("clock", "joint_states", "ground_truth", "odom", "imu", "ultrasonic", "cliff", "depth", "rgb", "bumper",
-           "lidar")
+           "lidar", "battery")
 DRIVES = ("plugin", "firmware")
 
 
@@ -78,11 +78,17 @@ class SimOptions:
     build_faults: str = ""             # firmware mode: wiring faults of the emulated robot, comma-separated
                                        # (chefbot_firmware.virtual_board.FAULT_NAMES, e.g. left_leads_swapped)
     battery_volts: float = 12.4        # firmware mode without battery_model: constant voltage the board measures (V)
-    battery_model: bool = True         # firmware mode: the board measures the discharge model (battery.py)
+    battery_model: bool = True         # the discharge model (battery.py): firmware mode, the board measures it;
+                                       # plugin mode, it is published at battery_rate
     battery_chemistry: str = "sla"     # sla | lipo3s | nimh10 (open-circuit voltage curve)
     battery_capacity_ah: float = 10.0  # Ah (book: 12 V 10 Ah)
     battery_initial_soc: float = 0.9   # state of charge at start, 0..1
     battery_idle_current: float = 2.5  # A drawn besides the motors (NUC, camera, board)
+    battery_rate: float = 1.0          # [Hz] plugin mode: the pack's state (battery_state) per second of sim time
+                                       # (0 = none; firmware mode: launchpad_node publishes it from the board)
+    charge_current: float = 5.0        # [A] into the pack while the robot stands still on its charger (a fleet
+                                       # robot with a charger pose in the fleet file; 0 = no charging)
+    charger_tolerance: float = 0.15    # [m] the robot is on its charger within this of the charger pose
     imu_relative_yaw: bool = True      # IMU yaw 0 at the start pose, as the real MPU6050's DMP
     imu_gyro_bias: float = imu_model.DEFAULT_GYRO_BIAS              # rad/s, z-gyro bias at start
     imu_gyro_bias_drift: float = imu_model.DEFAULT_GYRO_BIAS_DRIFT  # rad/s/sqrt(s), bias random walk
@@ -136,6 +142,10 @@ class SimOptions:
                 self.faults()
             except ValueError as exc:
                 raise SimConfigError(f"build_faults: {exc}") from None
+        for name in ("battery_rate", "charge_current", "charger_tolerance"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise SimConfigError(f"{name} must be a finite number >= 0, got {v!r}")
         try:
             self.imu_drift_config()
             self.battery_config()
@@ -338,6 +348,8 @@ class Simulator:
             "cliff": max((c.update_rate for c in p.cliffs), default=0.0),
             "depth": cam.update_rate, "rgb": self.options.rgb_rate, "bumper": self.options.bumper_rate,
             "lidar": self.lidar.rate if self.lidar is not None else 0.0,
+            "battery": self.options.battery_rate if self.options.battery_model and self.options.drive == "plugin"
+            else 0.0,
         }
         self.drive = self.options.drive
         if self.drive == "firmware":
@@ -351,6 +363,7 @@ class Simulator:
         self._imu_drift = self.options.imu_drift_config()
         self.s.imu_drift = imu_model.initial_state(self._imu_drift)
         self._battery = self.options.battery_config()
+        self.charger: Pose2D | None = None     # its charger in the world (a fleet robot's, from the fleet file)
         self.s.battery_soc = self._battery.initial_soc
         self.s.wheel_prev = tuple(self.body.joint_states(self._wheels)[0])
         self.s.wheel_true_prev = self.s.wheel_measured = self.s.wheel_prev
@@ -407,19 +420,35 @@ class Simulator:
         return battery.terminal_voltage(self._battery, self.s.battery_soc, self._battery.idle_current)
 
     def _discharge(self, dt: float) -> None:
-        """Firmware mode: draw the current of the motors (at the firmware's duties) and the rest
-        for ``dt`` s; the board measures the pack's terminal voltage."""
-        cfg, motor = self._battery, self.motor
-        amps = cfg.idle_current + sum(
-            battery.motor_current(cfg, d, motor.torque(d, w), motor.stall_torque)
-            for d, w in zip(self.firmware.duties(), self.s.wheel_speed, strict=True))
+        """Draw the current of the motors and the rest for ``dt`` s, less the charger's while the robot
+        stands on its charger.  Firmware mode: the motors at the firmware's duties, and the board measures
+        the pack's terminal voltage; plugin mode: each turning wheel's motor at its unloaded current (the
+        plugin drive has no duty; an estimate)."""
+        cfg = self._battery
+        if self.firmware is not None:
+            motor = self.motor
+            motors = sum(battery.motor_current(cfg, d, motor.torque(d, w), motor.stall_torque)
+                         for d, w in zip(self.firmware.duties(), self.s.wheel_speed, strict=True))
+        else:
+            motors = sum(cfg.motor_free_current for w in self.s.wheel_target if abs(w) > 1e-6)
+        amps = cfg.idle_current + motors - (self.options.charge_current if self.on_charger() else 0.0)
         self.s.battery_soc = battery.discharge(cfg, self.s.battery_soc, amps, dt)
         self.s.battery_current = amps
-        self.firmware.set_battery(battery.terminal_voltage(cfg, self.s.battery_soc, amps))
+        if self.firmware is not None:
+            self.firmware.set_battery(battery.terminal_voltage(cfg, self.s.battery_soc, amps))
+
+    def on_charger(self) -> bool:
+        """Does the robot stand still on its charger (``charger``: a pose in the world, None = none)?"""
+        if self.charger is None or self.options.charge_current <= 0:
+            return False
+        if any(abs(w) > 1e-6 for w in (self.s.wheel_target if self.firmware is None else self.firmware.duties())):
+            return False
+        pos = self.body.base_state()[0]
+        return math.hypot(pos[0] - self.charger.x, pos[1] - self.charger.y) <= self.options.charger_tolerance
 
     @property
     def battery(self) -> tuple[float, float]:
-        """(state of charge 0..1, current A) of the simulated pack (firmware mode with battery_model)."""
+        """(state of charge 0..1, current A; negative: charging) of the simulated pack (battery_model)."""
         return self.s.battery_soc, self.s.battery_current
 
     def _drive(self) -> None:
@@ -465,6 +494,8 @@ class Simulator:
             fw.after_physics(self._measure_wheels(ang), self.s.time)
             if self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
                 self._discharge(BATTERY_STEPS * dt)
+        elif self.options.battery_model and self.s.steps % BATTERY_STEPS == 0:
+            self._discharge(BATTERY_STEPS * dt)
         if self.s.time + 1e-9 < self._next_due:
             return  # most steps: no reading due
         for kind in SENSORS:
@@ -523,6 +554,11 @@ class Simulator:
             return self.rgb_image()
         if kind == "lidar":
             return self.lidar_scan()
+        if kind == "battery":
+            cfg = self._battery
+            return {"soc": self.s.battery_soc, "current": self.s.battery_current,
+                    "volts": battery.terminal_voltage(cfg, self.s.battery_soc, max(self.s.battery_current, 0.0)),
+                    "capacity_ah": cfg.capacity_ah, "charging": self.s.battery_current < 0}
         if kind == "bumper":
             contacts = self.body.contacts()
             return {"pressed": bool(contacts),

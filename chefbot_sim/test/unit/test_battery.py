@@ -22,6 +22,8 @@ def test_coulomb_counting_and_voltage_sag():
     cfg = BatteryConfig(capacity_ah=10.0, internal_resistance=0.05)
     assert battery.discharge(cfg, 1.0, 10.0, 360.0) == pytest.approx(0.9)      # 1 Ah of 10
     assert battery.discharge(cfg, 0.001, 10.0, 3600.0) == 0.0                  # never below empty
+    assert battery.discharge(cfg, 0.5, -5.0, 360.0) == pytest.approx(0.55)     # charging: negative current
+    assert battery.discharge(cfg, 0.99, -5.0, 3600.0) == 1.0                   # never above full
     rest = battery.terminal_voltage(cfg, 0.5, 0.0)
     assert battery.terminal_voltage(cfg, 0.5, 8.0) == pytest.approx(rest - 0.4)
 

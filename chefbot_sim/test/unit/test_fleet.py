@@ -140,3 +140,32 @@ def test_a_single_robot_world_steps_only_through_its_fleet(urdf_360) -> None:
         assert f.robot("solo") is f.sims[0]
     finally:
         f.close()
+
+
+def test_a_plugin_robot_draws_its_battery_and_charges_standing_on_its_charger(urdf_360) -> None:
+    o = SimOptions(seed=1, lidar_fov=0.0, battery_capacity_ah=0.05, battery_initial_soc=0.5, charge_current=5.0)
+    f = Fleet(EMPTY, [RobotSpec("chefbot1", urdf_360, Pose2D(0.0, 0.0, 0.0), o, charger=Pose2D(0.0, 0.0, 0.0)),
+                      RobotSpec("chefbot2", urdf_360, Pose2D(2.0, 0.0, 0.0), o)])
+    try:
+        one, two = f.sims
+        events = [e for i, e in f.run(10.0) if e.kind == "battery" and i == 0]
+        assert len(events) == 10 and events[-1].data["soc"] == pytest.approx(one.battery[0])   # 1 Hz
+        # chefbot1 stands on its charger: +5 A - 2.5 A idle into 0.05 Ah for 10 s
+        assert one.battery[0] == pytest.approx(0.5 + 2.5 * 10.0 / (0.05 * 3600.0), abs=0.01)
+        assert all(e.data["charging"] for e in events)
+        # chefbot2 has no charger: it draws 2.5 A idle
+        assert two.battery[0] == pytest.approx(0.5 - 2.5 * 10.0 / (0.05 * 3600.0), abs=0.01)
+        # driving draws more; driving off the charger stops the charging
+        before = [s.battery[0] for s in f.sims]
+        for s in f.sims:
+            s.set_cmd_vel(0.3, 0.0)
+        for _ in range(10):
+            for s in f.sims:
+                s.set_cmd_vel(0.3, 0.0)
+            f.run(0.5)
+        assert one.battery[0] < before[0] and two.battery[0] < before[1]
+        drop = before[1] - two.battery[0]
+        assert drop > 2.5 * 5.0 / (0.05 * 3600.0) + 1e-4        # more than idle alone
+        assert one.battery[1] > 0                                 # off its charger: drawing, not charging
+    finally:
+        f.close()
