@@ -26,6 +26,9 @@ A robot's trip, leg by leg::
   parking pose (a passing cause: another robot in the way, a localization upset).
 * **charge**: the robot finishes the trip it is on, gives back its waiting trips, drives to its
   charger and stays there (``charging``) until ``resume``.
+* **Batteries** (:meth:`Dispatcher.battery`, when the robot reports one): below ``low_battery`` a robot
+  is sent to charge as above; charging, it is back in service by itself once it reaches
+  ``charged_battery``.  A robot without a charger pose is only warned about (its reason).
 * **Cancelling** an order takes it out of its trip; a robot carrying its plates skips its tables
   unless another order of the trip needs them.
 * **Restart**: a new Dispatcher on the same store resumes the queue.  Orders that were loading or on
@@ -56,6 +59,7 @@ from chefbot_fleet.travel import Places
 POLICIES = {"insertion": Planner, "nearest_idle": NearestIdle}
 OUT_OF_SERVICE = ("paused", "fault", "offline", "to_charger", "charging")
 MOVED_M = 0.10          # m: a driving robot that moved less than this in stall_s is stalled
+PARKED_M = 0.25         # m: a robot this close to its parking pose is parked
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,8 @@ class Config:
     stale_s: float = 10.0
     stall_s: float = 90.0
     recover_s: float = 60.0     # a robot in fault is sent to its parking pose after this long (0: only staff resume it)
+    low_battery: float = 0.25   # state of charge (0..1) below which a robot goes to charge after its trip
+    charged_battery: float = 0.9   # ... and at which it is back in service
     keep_final: int = 50        # final orders kept in the published queue
 
     def __post_init__(self) -> None:
@@ -95,6 +101,9 @@ class Config:
             raise ValueError(f"policy must be one of {', '.join(POLICIES)}, got {self.policy!r}")
         if self.retries < 0:
             raise ValueError(f"retries must be >= 0, got {self.retries}")
+        if not 0.0 <= self.low_battery < self.charged_battery <= 1.0:
+            raise ValueError(f"need 0 <= low_battery < charged_battery <= 1, got {self.low_battery}, "
+                             f"{self.charged_battery}")
         if not (math.isfinite(self.recover_s) and self.recover_s >= 0):
             raise ValueError(f"recover_s must be a number >= 0, got {self.recover_s}")
         for name in ("retry_wait_s", "stale_s", "stall_s"):
@@ -127,6 +136,8 @@ class Robot:
     retry_place: str = ""        # the leg to send again when wait_until passes (state 'retrying')
     charge_after: bool = False   # staff asked it to charge after its trip
     fault_since: float = 0.0     # when it went into fault
+    battery: float = -1.0        # state of charge 0..1 (-1: not reported)
+    for_battery: bool = False    # it went to charge because its battery was low (back by itself when charged)
 
     @property
     def here(self) -> str:
@@ -216,13 +227,13 @@ class Dispatcher:
                                  "by itself when it reports again")
             if r.state not in ("paused", "fault", "charging", "to_charger"):
                 return f"{name} is {r.state}: nothing to resume"
-            self._idle(r, now, "")
+            self._home(r, now)        # from wherever it stopped (a new trip may come first)
             self._replan_waiting(now)
             return f"{name} takes orders again"
         if command == "charge":
             if r.charger is None:
                 raise ValueError(f"{name} has no charger pose in the fleet file")
-            r.charge_after = True
+            r.charge_after, r.for_battery = True, False
             for order in self._withdraw_pending(r, now, f"{name} goes to its charger"):
                 self._plan(order, now)
             if r.schedule.current is None:
@@ -230,6 +241,25 @@ class Dispatcher:
             self.changed = True
             return f"{name} goes to its charger" + (" after its trip" if r.schedule.current else "")
         raise ValueError(f"unknown command {command!r}: pause, resume or charge")
+
+    def battery(self, name: str, fraction: float, now: float) -> None:
+        """Robot ``name``'s battery state of charge (0..1; NaN or out of range: ignored)."""
+        r = self.robots.get(name)
+        if r is None or not (math.isfinite(fraction) and 0.0 <= fraction <= 1.0):
+            return
+        r.battery = fraction
+        low = fraction < self.cfg.low_battery
+        if r.state == "charging" and r.for_battery and fraction >= self.cfg.charged_battery:
+            self._home(r, now)
+            self._replan_waiting(now)
+        elif low and not r.charge_after and r.state not in OUT_OF_SERVICE:      # not a paused robot
+            why = f"battery {100 * fraction:.0f} %"
+            if r.charger is None:
+                if r.reason != f"{why}, no charger pose":
+                    r.reason, self.changed = f"{why}, no charger pose", True
+                return
+            self.set_robot(name, "charge", now)
+            r.for_battery, r.reason = True, f"{why}: charging after its trip"
 
     def heard(self, name: str, pose: Pose2D, now: float, waiting: bool = False) -> None:
         """Robot ``name`` reported its pose (``waiting``: its navigation says it waits on purpose, e.g.
@@ -245,8 +275,10 @@ class Dispatcher:
             r.reason = ""
             if r.schedule.current is not None:      # restarted dispatcher: the plates on board go on
                 self._next_stop(r, now)
-            else:
+            elif r.schedule.pending:                 # restarted dispatcher: its waiting trips go on
                 self._idle(r, now, "")
+            else:                                    # back from silence, or a new dispatcher: to its parking pose
+                self._home(r, now)
             self._replan_waiting(now)
 
     def leg_done(self, name: str, leg: int, ok: bool, reason: str, now: float) -> None:
@@ -275,7 +307,7 @@ class Dispatcher:
         elif r.state == "parking":
             self._idle(r, now, "")
         elif r.state == "to_charger":
-            r.state = "charging"
+            r.state, r.charge_after = "charging", False
         self.changed = True
 
     def tick(self, now: float) -> None:
@@ -421,8 +453,9 @@ class Dispatcher:
             return max(now, r.wait_until) + (self.site.travel(r.here, r.place) if r.pose is not None else 0.0)
         return now + max(0.0, r.leg_expect_s - (now - r.leg_started)) if r.leg else now
 
-    def _plan(self, order_id: str, now: float) -> None:
-        """Plan one stored order onto a robot in service; keep it waiting when none may take it."""
+    def _plan(self, order_id: str, now: float, why: str = "") -> None:
+        """Plan one stored order onto a robot in service (``why``: the reason it is planned again, kept with
+        its new assignment); keep it waiting when none may take it."""
         o = self.store.get(order_id)
         for r in self.robots.values():
             self._refresh(r, now)
@@ -436,7 +469,7 @@ class Dispatcher:
             return
         if order_id in self.waiting:
             self.waiting.remove(order_id)
-        self._move(order_id, "assigned", now, sch.robot)
+        self._move(order_id, "assigned", now, sch.robot, f"planned again: {why}" if why else "")
         self.changed = True
 
     def _replan_waiting(self, now: float) -> None:
@@ -488,6 +521,13 @@ class Dispatcher:
         r.leg_expect_s = self.site.travel(r.here, place) if r.pose is not None else 0.0
         self._commands.append(Goto(r.name, place, r.leg))
 
+    def _home(self, r: Robot, now: float) -> None:
+        """In service again: idle where it stands when that is its parking pose, else driving there."""
+        self._idle(r, now, "")
+        park = self.places.pose(r.parking)
+        if r.pose is None or r.pose.distance(park) > PARKED_M:
+            self._send(r, "parking", r.parking, now)
+
     def _idle(self, r: Robot, now: float, reason: str) -> None:
         r.state, r.reason, r.leg, r.tries, r.charge_after = "idle", reason, 0, 0, False
         self.changed = True
@@ -526,7 +566,7 @@ class Dispatcher:
         r.place, r.fault_since = "", now
         self.changed = True
         for oid in back:
-            self._plan(oid, now)
+            self._plan(oid, now, why)
 
     def _drop(self, r: Robot, order_id: str, now: float) -> None:
         """Take a cancelled order out of the robot's trips; re-route it when its next table is no longer needed."""

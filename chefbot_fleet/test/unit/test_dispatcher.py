@@ -218,6 +218,9 @@ def test_pause_cancel_and_charge(tmp_path) -> None:
     disp, world = make(tmp_path)
     world.run_until(lambda: all(r.state == "idle" for r in disp.robots.values()), 60)
     disp.set_robot("r2", "pause", world.t)
+    assert disp.set_robot("r2", "resume", world.t) == "r2 takes orders again"
+    assert disp.robots["r2"].state == "idle"                 # paused where it parks: it stays there
+    disp.set_robot("r2", "pause", world.t)
     a = disp.deliver(["t2"], 1.0, "", world.t).id
     b = disp.deliver(["t2", "t7"], 1.0, "", world.t).id
     c = disp.deliver(["t5"], 1.0, "", world.t).id
@@ -358,3 +361,45 @@ def test_a_robot_in_fault_tries_its_parking_pose_after_recover_s_and_is_back_in_
     world.broken.clear()
     world.run_until(lambda: all_final(disp), 600)                      # the next try works: it serves
     assert disp.store.get(oid).state == "served" and disp.store.get(oid).assigned == "r1"
+
+
+def test_a_robot_low_on_battery_finishes_its_trip_charges_and_comes_back_by_itself(tmp_path) -> None:
+    disp, world = make(tmp_path)
+    world.run_until(lambda: all(r.state == "idle" for r in disp.robots.values()), 60)
+    a = disp.deliver(["t8"], 1.0, "r1", world.t).id
+    world.run_until(lambda: disp.store.get(a).state == "on_the_way")
+    b = disp.deliver(["t7"], 1.0, "", world.t).id          # r1 would take it after its trip, if it could
+    disp.battery("r1", 0.20, world.t)
+    assert disp.robots["r1"].reason.startswith("battery 20 %")
+    assert disp.store.get(b).assigned == "r2"               # nothing new for r1
+    world.run_until(lambda: disp.robots["r1"].state == "charging")
+    assert disp.store.get(a).state == "served"              # it finished the trip it was on
+    assert world.pose["r1"].distance(disp.places.pose(charger_place("r1"))) < 1e-9
+    disp.battery("r1", 0.5, world.t)
+    c = disp.deliver(["t1"], 1.0, "", world.t).id
+    assert disp.store.get(c).assigned == "r2"               # still charging
+    disp.battery("r1", 0.95, world.t)
+    assert disp.robots["r1"].state == "parking"             # charged: back in service, on its way to park
+    d = disp.deliver(["t0"], 1.0, "r1", world.t).id
+    world.run_until(lambda: all_final(disp))
+    assert disp.store.get(d).state == "served"
+    # nonsense readings are ignored; a paused robot is not sent to charge (staff hold it)
+    disp.battery("r2", float("nan"), world.t)
+    disp.battery("r2", 7.0, world.t)
+    assert disp.robots["r2"].battery != 7.0
+    disp.set_robot("r2", "pause", world.t)
+    disp.battery("r2", 0.1, world.t)
+    assert disp.robots["r2"].state == "paused"
+    with pytest.raises(ValueError, match="low_battery"):
+        Config(low_battery=0.9, charged_battery=0.5)
+
+
+def test_a_robot_without_a_charger_is_only_warned_about(tmp_path) -> None:
+    poses = {n: places().pose(n) for n in [*TABLES, "kitchen", parking_place("r1")]}
+    store = OrderStore(tmp_path / "orders.db")
+    disp = Dispatcher(store, Places(poses, straight_route(SPEED)), "kitchen", list(TABLES), ["r1"], 0.0)
+    disp.heard("r1", poses[parking_place("r1")], 0.0)
+    disp.battery("r1", 0.1, 0.0)
+    assert disp.robots["r1"].state == "idle" and "no charger" in disp.robots["r1"].reason
+    with pytest.raises(ValueError, match="no charger"):
+        disp.set_robot("r1", "charge", 0.0)
