@@ -1,35 +1,36 @@
 #!/usr/bin/env python3
-"""`make demo ROBOTS=N`: several ChefBots deliver in one simulated restaurant (headless).
+"""`make demo ROBOTS=N`: a stream of orders served by several ChefBots in one simulated restaurant (headless).
 
-Starts a private ROS master and ``chefbot_sim fleet_world.launch robots:=N`` (one pybullet world
-holding the site fleet file's first N robots, each with its own amcl and move_base under
-``/chefbotK``), prints each robot's start, then drives every robot at once: the site's
-destinations are split into N runs of neighbouring tables (file order), each run given to the
-robot whose parking pose is nearest to it (a minimum-cost assignment), and each robot delivers its
-run and returns to its parking pose.  A leg move_base aborts (another robot in the way outside the
-single-lane zones, which nothing coordinates yet) is sent again after 5 s, up to 3 times.  One line per leg, prefixed
-with the robot's name (path length, time, final ground-truth error, bumper contacts), then
-``delivered N/M tables with K robots in T s``.
+Starts a private ROS master, ``chefbot_sim fleet_world.launch robots:=N`` (one pybullet world holding
+the site fleet file's first N robots, each with its own amcl and move_base under ``/chefbotK``) and
+``chefbot_fleet dispatcher.launch`` (the order queue, on a fresh database under build/demo), waits
+until every robot reports idle, then places a seeded stream of orders on the dispatcher's
+``/fleet/deliver`` action: ``ORDERS`` orders (default: as many as the site has tables) of one or two
+tables, Poisson arrivals every ``ORDER_EVERY`` s of sim time on average.  The dispatcher plans them
+onto trips (up to 3 orders loaded at the kitchen per trip) and drives the robots.  One line per order
+when it ends (tables, robot, wait from the order to the robot at its last table, the robot's
+ground-truth distance to that table), then the throughput summary: orders per hour, median and
+95th-percentile wait, makespan, bumper contacts, robots back at their parking poses.
 
-A table counts as delivered when move_base reports SUCCEEDED and the simulator's ground truth is
-within 0.05 m / 0.05 rad of the table pose.  Exit code 0 only when every table was delivered and
-every robot is back at its parking pose.  Results also go to build/demo/fleet.json.
+An order counts as delivered when the dispatcher reports it served and the simulator's ground truth
+puts its robot within 0.05 m of one of the order's tables at that moment.  Exit code 0 only when every
+order was delivered, no bumper was pressed and every robot is back at its parking pose.  Results also
+go to build/demo/fleet.json.
 
 Environment (``make demo ROBOTS=3 [FLEET_FILE=...] [WORLD=... MAP=... TABLES_FILE=...]``):
-CHEFBOT_DEMO_ROBOTS (N >= 2), CHEFBOT_DEMO_FLEET_FILE (default: the hotel's), CHEFBOT_DEMO_WORLD,
-CHEFBOT_DEMO_MAP (the world's raster: the fleet and tables files' poses are in the world frame),
-CHEFBOT_DEMO_TABLES_FILE, CHEFBOT_DEMO_TABLES (a comma-separated subset), CHEFBOT_DEMO_DRIVE
+CHEFBOT_DEMO_ROBOTS (N >= 2), CHEFBOT_DEMO_FLEET_FILE (default: the hotel's; it names the kitchen),
+CHEFBOT_DEMO_WORLD, CHEFBOT_DEMO_MAP (the world's raster: the fleet and tables files' poses are in the
+world frame), CHEFBOT_DEMO_TABLES_FILE, CHEFBOT_DEMO_TABLES (a comma-separated subset), CHEFBOT_DEMO_DRIVE
 (plugin, the default here, or firmware), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the
-IMU, as in `make demo`; 0: the wheels'), CHEFBOT_DEMO_RTF (default 1.0).
-
-chefbot_fleet's traffic node lets one robot at a time into each single-lane aisle; elsewhere the
-robots only see and avoid each other (chefbot_fleet README), so in tight two-lane space a leg can
-still abort and is retried.
+IMU, as in `make demo`; 0: the wheels'), CHEFBOT_DEMO_RTF (default 1.0), CHEFBOT_DEMO_ORDERS,
+CHEFBOT_DEMO_ORDER_EVERY (s, default 20), CHEFBOT_DEMO_SEED (default 0).
 """
 from __future__ import annotations
 
 import json
+import math
 import os
+import random
 import sys
 import threading
 import time
@@ -43,12 +44,11 @@ from procs import ProcessGroup, free_port
 ROOT = Path(__file__).resolve().parent.parent
 LOG_DIR = ROOT / "build" / "demo"
 MAPS = ROOT / "chefbot_navigation" / "maps"
-XY_TOL, YAW_TOL = 0.05, 0.05          # m, rad: the acceptance tolerance against ground truth
+XY_TOL = 0.05                         # m: the serving robot against the table pose, ground truth
 PARK_TOL = 0.10                       # m: back at the parking pose
-STARTUP_TIMEOUT_S = 240.0             # wall time for the sim + N stacks to come up
-LEG_TIMEOUT_S = 300.0                 # wall time per leg before giving up
-RETRIES = 3                           # a leg move_base aborted (another robot in the way) is sent again ...
-RETRY_WAIT_S = 5.0                    # ... after this many sim seconds
+STARTUP_TIMEOUT_S = 300.0             # wall time for the sim, N stacks and the dispatcher to come up
+ORDER_TIMEOUT_S = 1800.0              # wall time for the whole stream once the last order is placed
+FINAL = ("served", "cancelled", "failed")
 
 
 class FleetDemoError(ValueError):
@@ -59,41 +59,49 @@ def say(msg: str) -> None:
     print(f"[demo] {msg}", flush=True)
 
 
-def split_runs(names: list[str], n: int) -> list[list[str]]:
-    """``names`` in ``n`` runs of neighbours in file order, sizes differing by at most one."""
-    sizes = [len(names) // n + (1 if k < len(names) % n else 0) for k in range(n)]
-    out, i = [], 0
-    for size in sizes:
-        out.append(names[i:i + size])
-        i += size
+def order_stream(tables: list[str], count: int, every_s: float, seed: int) -> list[tuple[float, list[str]]]:
+    """``count`` orders of one or two distinct ``tables`` (uniform), at Poisson arrival times with mean
+    gap ``every_s`` s, the first at 0: [(t, tables)], seeded."""
+    if count < 1 or not tables or not every_s > 0:
+        raise FleetDemoError(f"an order stream needs orders >= 1, tables and a gap > 0 (got {count}, "
+                             f"{len(tables)} tables, {every_s})")
+    rng = random.Random(seed)
+    t, out = 0.0, []
+    for k in range(count):
+        if k:
+            t += rng.expovariate(1.0 / every_s)
+        n = 1 if len(tables) < 2 else rng.choice((1, 2))
+        out.append((round(t, 1), rng.sample(tables, n)))
     return out
 
 
-def assign_runs(runs: list[list[str]], tables: dict, parkings: list) -> list[list[str]]:
-    """Run k for robot k: the assignment of runs to robots that minimises the summed distance from each
-    robot's parking pose to its run's centroid (scipy's linear_sum_assignment)."""
-    from scipy.optimize import linear_sum_assignment
-
-    cost = np.zeros((len(parkings), len(runs)))
-    for i, park in enumerate(parkings):
-        for j, run in enumerate(runs):
-            if run:
-                cx = np.mean([tables[t].x for t in run])
-                cy = np.mean([tables[t].y for t in run])
-                cost[i, j] = np.hypot(cx - park.x, cy - park.y)
-    rows, cols = linear_sum_assignment(cost)
-    out = [[] for _ in parkings]
-    for i, j in zip(rows, cols, strict=True):
-        out[i] = runs[j]
-    return out
+def summarise(orders: list[dict], robots: int) -> dict:
+    """The stream's figures from the per-order results (each with ``placed``, ``ended`` sim s, ``ok``)."""
+    done = [o for o in orders if o["ok"]]
+    waits = sorted(o["ended"] - o["placed"] for o in done)
+    start = min((o["placed"] for o in orders), default=0.0)
+    end = max((o["ended"] for o in orders if o["ended"] is not None), default=start)
+    makespan = end - start
+    pct = (lambda q: float(waits[min(len(waits) - 1, max(0, math.ceil(q / 100 * len(waits)) - 1))])) if waits \
+        else (lambda q: float("nan"))
+    return {"robots": robots, "orders": len(orders), "delivered": len(done), "makespan_s": makespan,
+            "orders_per_hour": len(done) / makespan * 3600.0 if makespan > 0 else 0.0,
+            "wait_median_s": float(np.median(waits)) if waits else float("nan"), "wait_p95_s": pct(95)}
 
 
 def settings() -> dict:
     """The demo's settings from the environment; FleetDemoError names a bad one."""
     from demo import DemoInputError, table_names
 
-    from chefbot_common.fleet_file import FleetFileError, load_fleet, select
+    from chefbot_common.fleet_file import FleetFileError, load_fleet, load_kitchen, select
     from chefbot_common.tables import TablesError, load_tables
+
+    def number(name: str, default: str, kind=int):
+        raw = os.environ.get(name, default)
+        try:
+            return kind(raw)
+        except ValueError:
+            raise FleetDemoError(f"{name.replace('CHEFBOT_DEMO_', '')} must be a number, got {raw!r}") from None
 
     try:
         n = int(os.environ.get("CHEFBOT_DEMO_ROBOTS", "2"))
@@ -115,50 +123,140 @@ def settings() -> dict:
         raise FleetDemoError(f"DRIVE must be plugin or firmware, got {drive!r}")
     try:
         robots = select(load_fleet(files["fleet"]), n, files["fleet"])
+        if load_kitchen(files["fleet"]) is None:
+            raise FleetDemoError(f"{files['fleet']} has no kitchen pose: the dispatcher's robots load there "
+                                 "(chefbot_fleet README, 'Fleet files')")
         tables = load_tables(files["tables"])
         names = table_names(tables, files["tables"])      # the destinations, or CHEFBOT_DEMO_TABLES
     except (FleetFileError, TablesError, DemoInputError) as exc:
         raise FleetDemoError(str(exc)) from None
     if n < 2:
         raise FleetDemoError(f"ROBOTS={n}: the fleet demo needs 2 or more robots (one robot: make demo)")
-    runs = assign_runs(split_runs(names, n), tables, [r.parking for r in robots])
-    return {"files": files, "robots": robots, "tables": tables, "runs": runs, "drive": drive,
-            "rtf": os.environ.get("CHEFBOT_DEMO_RTF", "1.0"), "n_tables": len(names),
+    count = number("CHEFBOT_DEMO_ORDERS", str(len(names)))
+    every = number("CHEFBOT_DEMO_ORDER_EVERY", "20", float)
+    stream = order_stream(names, count, every, number("CHEFBOT_DEMO_SEED", "0"))
+    return {"files": files, "robots": robots, "tables": tables, "stream": stream, "drive": drive,
+            "rtf": os.environ.get("CHEFBOT_DEMO_RTF", "1.0"),
             "use_imu": os.environ.get("CHEFBOT_DEMO_USE_IMU", "true") not in ("0", "false", "")}
 
 
-def drive_robot(robot, client, run: list[str], tables: dict, results: dict, lock: threading.Lock) -> None:
-    """One robot's route with its ``client`` (delivery.DeliveryClient): its tables, then its parking
-    pose (a thread per robot)."""
-    import rospy
+class Watch:
+    """Ground truth and bumpers of every robot, and the dispatcher's queue (the demo's judge)."""
 
-    try:
-        client.wait_ready(120.0)
-        client.wait_localized(120.0)
-    except (TimeoutError, rospy.ROSException) as exc:   # the robot's stack did not come up
-        with lock:
-            results[robot.name] = {"error": str(exc), "legs": []}
-        say(f"[{robot.name}] ERROR: {exc}")
-        return
-    legs = []
-    for name in [*run, "parking"]:
-        pose = robot.parking if name == "parking" else tables[name]
-        for attempt in range(1, RETRIES + 2):
-            leg = client.deliver(name, pose.x, pose.y, pose.yaw, LEG_TIMEOUT_S)
-            if leg.state != "ABORTED" or attempt > RETRIES or rospy.is_shutdown():
-                break
-            # outside the single-lane zones nothing coordinates the robots: another one may block the
-            # way and move on
-            say(f"[{robot.name}] {name}: {leg.text}; trying again in {RETRY_WAIT_S:g} s ({attempt}/{RETRIES})")
-            rospy.sleep(RETRY_WAIT_S)
-        leg.text += f" (attempt {attempt})" if attempt > 1 else ""
-        tol_xy = PARK_TOL if name == "parking" else XY_TOL
-        within = leg.xy_error <= tol_xy and (name == "parking" or leg.yaw_error <= YAW_TOL)
-        leg.ok = leg.ok and within
-        legs.append(leg)
-        say(f"[{robot.name}] " + ("" if leg.ok else "NOT DONE ") + leg.line())
-    with lock:
-        results[robot.name] = {"legs": [leg.as_dict() for leg in legs]}
+    def __init__(self, names: list[str], tables: dict) -> None:
+        import rospy
+        from nav_msgs.msg import Odometry
+        from std_msgs.msg import Bool
+
+        from chefbot_fleet.msg import OrderQueue
+
+        self.tables, self.lock = tables, threading.Lock()
+        self.truth: dict[str, tuple[float, float]] = {}
+        self.bumps = {n: 0 for n in names}
+        self.queue = None
+        self.served_at: dict[str, float] = {}          # order id -> robot's distance to its nearest table
+        for n in names:
+            rospy.Subscriber(f"/{n}/ground_truth/odom", Odometry, self._on_truth, callback_args=n, queue_size=10)
+            rospy.Subscriber(f"/{n}/bumper", Bool, self._on_bumper, callback_args=n, queue_size=10)
+        rospy.Subscriber("/fleet/orders", OrderQueue, self._on_queue, queue_size=20)
+
+    def _on_truth(self, m, name: str) -> None:
+        with self.lock:
+            self.truth[name] = (m.pose.pose.position.x, m.pose.pose.position.y)
+
+    def _on_bumper(self, m, name: str) -> None:
+        if m.data:
+            with self.lock:
+                self.bumps[name] += 1
+
+    def _on_queue(self, m) -> None:
+        with self.lock:
+            self.queue = m
+            for o in m.orders:
+                if o.state == "served" and o.id not in self.served_at and o.assigned in self.truth:
+                    x, y = self.truth[o.assigned]
+                    self.served_at[o.id] = min(math.hypot(x - self.tables[t].x, y - self.tables[t].y)
+                                               for t in o.tables)
+
+    def robots(self) -> dict:
+        with self.lock:
+            return {r.name: r for r in self.queue.robots} if self.queue else {}
+
+    def orders(self) -> dict:
+        with self.lock:
+            return {o.id: o for o in self.queue.orders} if self.queue else {}
+
+
+def place_orders(cfg: dict, watch: Watch, log: Path, launch) -> list[dict]:
+    """Place the stream on /fleet/deliver at its sim times; one line per order as it is placed and as it
+    ends (once the dispatcher's queue shows it final, so the robot's place then is known)."""
+    import actionlib
+    import rospy
+    from actionlib_msgs.msg import GoalStatus
+
+    from chefbot_fleet.msg import DeliverAction, DeliverGoal
+
+    client = actionlib.ActionClient("/fleet/deliver", DeliverAction)
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    while not (client.wait_for_server(rospy.Duration(0.1)) and len(watch.robots()) == len(cfg["robots"])
+               and all(r.state == "idle" for r in watch.robots().values())):
+        if time.monotonic() > deadline or launch.poll() is not None:
+            raise TimeoutError(f"the dispatcher or a robot did not come up; see {log}")
+        time.sleep(0.2)
+    say(f"every robot idle; placing {len(cfg['stream'])} orders over {cfg['stream'][-1][0]:.0f} s")
+    t0 = rospy.get_time()
+    todo = list(enumerate(cfg["stream"]))
+    pending: dict[int, dict] = {}        # stream index -> {tables, placed, gh, id, ended_at}
+    results: list[dict] = []
+    ended = (GoalStatus.SUCCEEDED, GoalStatus.ABORTED, GoalStatus.PREEMPTED, GoalStatus.REJECTED,
+             GoalStatus.RECALLED)
+    deadline = math.inf
+    while todo or pending:
+        if time.monotonic() > deadline or launch.poll() is not None:
+            say(f"ERROR: {len(pending)} order(s) not finished; see {log}")
+            break
+        now = rospy.get_time()
+        while todo and now >= t0 + todo[0][1][0]:
+            k, (_, tables) = todo.pop(0)
+            pending[k] = {"tables": tables, "placed": now, "id": "",
+                          "gh": client.send_goal(DeliverGoal(tables=tables, priority=1.0)), "ended_at": None}
+            if not todo:
+                deadline = time.monotonic() + ORDER_TIMEOUT_S
+        for k, o in list(pending.items()):
+            status = o["gh"].get_goal_status()
+            if not o["id"] and status == GoalStatus.ACTIVE:
+                o["id"] = o["gh"].get_goal_status_text().split()[-1]        # "order o7"
+                say(f"{o['id']} placed at {o['placed'] - t0:6.1f} s: {', '.join(o['tables'])}")
+            if status not in ended:
+                continue
+            result = o["gh"].get_result()
+            oid = result.order_id if result is not None and result.order_id else o["id"] or "?"
+            order = watch.orders().get(oid)
+            o["ended_at"] = o["ended_at"] or time.monotonic()
+            if status != GoalStatus.REJECTED and (order is None or order.state not in FINAL) \
+                    and time.monotonic() - o["ended_at"] < 5.0:
+                continue                 # the queue's publication of it follows the action's result
+            end_t = order.updated.to_sec() if order is not None else rospy.get_time()
+            dist = watch.served_at.get(oid, math.inf)
+            state = result.state if result is not None and result.state else "rejected"
+            ok = state == "served" and dist <= XY_TOL
+            robot = (order.assigned if order is not None else "") or "-"
+            reason = result.reason if result is not None and result.reason else o["gh"].get_goal_status_text()
+            say(f"{oid} {'+'.join(o['tables'])}: " + ("" if ok else "NOT DONE ") +
+                f"{state} by {robot}, wait {end_t - o['placed']:.1f} s, at table {dist:.3f} m" +
+                (f" ({reason})" if state != "served" and reason else ""))
+            results.append({"id": oid, "tables": o["tables"], "robot": robot, "state": state,
+                            "placed": o["placed"], "ended": end_t, "at_table_m": dist if math.isfinite(dist) else None,
+                            "ok": ok})
+            del pending[k]
+        time.sleep(0.1)
+    for o in pending.values():
+        results.append({"id": o["id"] or "?", "tables": o["tables"], "robot": "-", "state": "unfinished",
+                        "placed": o["placed"], "ended": None, "at_table_m": None, "ok": False})
+    for _, (_, tables) in todo:
+        results.append({"id": "?", "tables": tables, "robot": "-", "state": "not placed", "placed": t0,
+                        "ended": None, "at_table_m": None, "ok": False})
+    return results
 
 
 def main() -> int:
@@ -167,26 +265,32 @@ def main() -> int:
     except FleetDemoError as exc:
         say(f"ERROR: {exc}")
         return 2
-    robots, runs = cfg["robots"], cfg["runs"]
+    robots = cfg["robots"]
     port = free_port()
     uri = f"http://127.0.0.1:{port}"
     env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(LOG_DIR / "ros_home"))
     os.environ.update(ROS_MASTER_URI=uri, ROS_HOME=env["ROS_HOME"])
     log = LOG_DIR / "roslaunch.log"
     files = cfg["files"]
+    names = [r.name for r in robots]
+    database = LOG_DIR / "orders.sqlite"
+    LOG_DIR.mkdir(parents=True, exist_ok=True)
+    database.unlink(missing_ok=True)                 # every demo starts with an empty queue
     launch_cmd = ["roslaunch", "--wait", "chefbot_sim", "fleet_world.launch", f"robots:={len(robots)}",
-                  f"names:={' '.join(r.name for r in robots)}", f"world:={Path(files['world']).resolve()}",
+                  f"names:={' '.join(names)}", f"world:={Path(files['world']).resolve()}",
                   f"map_file:={Path(files['map']).resolve()}", f"fleet_file:={Path(files['fleet']).resolve()}",
                   f"drive:={cfg['drive']}", f"real_time_factor:={cfg['rtf']}",
                   f"use_imu:={str(cfg['use_imu']).lower()}"]
+    dispatcher_cmd = ["roslaunch", "--wait", "chefbot_fleet", "dispatcher.launch", f"robots:={' '.join(names)}",
+                      f"fleet_file:={Path(files['fleet']).resolve()}",
+                      f"tables_file:={Path(files['tables']).resolve()}", f"database:={database}"]
     say(f"starting {len(robots)} robots in one simulated {Path(files['world']).stem} ({cfg['drive']} drive; "
-        f"master {uri}, real-time factor {cfg['rtf']}); log: {log.relative_to(ROOT)}")
-    for r, run in zip(robots, runs, strict=True):
-        say(f"  {r.name}: parked at ({r.parking.x:.2f}, {r.parking.y:.2f}); delivers {', '.join(run) or 'nothing'}")
+        f"master {uri}, real-time factor {cfg['rtf']}) and the dispatcher; log: {log.relative_to(ROOT)}")
+    say(f"the order stream: {len(cfg['stream'])} orders of one or two tables over {cfg['stream'][-1][0]:.0f} s "
+        "of sim time (seeded)")
     with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
             ProcessGroup(launch_cmd, env=env, log=log) as launch:
         import rosgraph
-        import rospy
 
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         master = rosgraph.Master("/chefbot_fleet_demo")
@@ -195,46 +299,48 @@ def main() -> int:
                 say(f"ERROR: the simulation did not come up; see {log}")
                 return 1
             time.sleep(0.1)
-        rospy.init_node("chefbot_fleet_demo", anonymous=True, disable_signals=True)
-        say("waiting for the simulator and every move_base ...")
-        lock, results = threading.Lock(), {}
-        # the clients are made here, one after the other: each makes a tf2 Buffer, and the first one
-        # registers the process's ~tf2_frames service -- made in parallel threads, two could both
-        # find it missing and the second registration killed its robot's thread
-        from delivery import DeliveryClient
-        clients = [DeliveryClient(ns=r.name) for r in robots]
-        t0_sim, t0_wall = rospy.Time.now(), time.monotonic()
-        def guarded(robot, *args) -> None:
-            try:
-                drive_robot(robot, *args)
-            except Exception as exc:  # noqa: BLE001 -- one robot's failure is reported, the others go on
-                say(f"[{robot.name}] ERROR: {type(exc).__name__}: {exc}")
-                with lock:
-                    results.setdefault(robot.name, {"error": str(exc), "legs": []})
+        # the dispatcher only now: a node reads /use_sim_time once, at start (before it, wall time)
+        with ProcessGroup(dispatcher_cmd, env=env, log=LOG_DIR / "dispatcher.log"):
+            code = run_stream(cfg, robots, names, launch, log)
+    return code
 
-        threads = [threading.Thread(target=guarded, args=(r, c, run, cfg["tables"], results, lock),
-                                    daemon=True) for r, c, run in zip(robots, clients, runs, strict=True)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            while t.is_alive():
-                t.join(0.5)
-                if launch.poll() is not None:
-                    say(f"ERROR: the simulation stopped (roslaunch exit {launch.poll()}); see {log}")
-                    return 1
-        sim_s = (rospy.Time.now() - t0_sim).to_sec()
-        wall_s = time.monotonic() - t0_wall
-        rospy.signal_shutdown("demo done")
-    delivered = sum(1 for r in results.values() for leg in r["legs"] if leg["ok"] and leg["name"] != "parking")
-    parked = sum(1 for r in results.values() if r["legs"] and r["legs"][-1]["name"] == "parking"
-                 and r["legs"][-1]["ok"])
-    bumps = sum(leg["bumps"] for r in results.values() for leg in r["legs"])
-    LOG_DIR.mkdir(parents=True, exist_ok=True)
+
+def run_stream(cfg: dict, robots: list, names: list[str], launch, log: Path) -> int:
+    """With the simulation and the dispatcher up: the order stream, the robots back home, the figures."""
+    import rospy
+
+    rospy.init_node("chefbot_fleet_demo", anonymous=True, disable_signals=True)
+    say("waiting for the simulator, every robot's stack and the dispatcher ...")
+    watch = Watch(names, cfg["tables"])
+    t0_wall = time.monotonic()
+    try:
+        results = place_orders(cfg, watch, log, launch)
+    except (TimeoutError, RuntimeError) as exc:
+        say(f"ERROR: {exc}")
+        return 1
+    # back to their parking poses
+    deadline = time.monotonic() + 300.0
+    while not all(r.state == "idle" for r in watch.robots().values()) and time.monotonic() < deadline \
+            and launch.poll() is None:
+        time.sleep(0.2)
+    time.sleep(0.5)
+    parked = sum(1 for r in robots if r.name in watch.truth
+                 and math.hypot(watch.truth[r.name][0] - r.parking.x, watch.truth[r.name][1] - r.parking.y) <= PARK_TOL)
+    wall_s = time.monotonic() - t0_wall
+    rospy.signal_shutdown("demo done")
+    figures = summarise(results, len(robots))
+    bumps = sum(watch.bumps.values())
     out = LOG_DIR / "fleet.json"
-    out.write_text(json.dumps({"robots": len(robots), "real_time_factor": cfg["rtf"], "sim_seconds": sim_s,
-                               "wall_seconds": wall_s, "results": results}, indent=2) + "\n")
+    out.write_text(json.dumps({"real_time_factor": cfg["rtf"], "wall_seconds": wall_s, "summary": figures,
+                               "bumper_contacts": watch.bumps, "parked": parked, "orders": results}, indent=2) + "\n")
     say(f"results: {out.relative_to(ROOT)}")
     say(f"back at their parking poses: {parked}/{len(robots)}; bumper contacts: {bumps}")
-    say(f"delivered {delivered}/{cfg['n_tables']} tables with {len(robots)} robots in {sim_s:.1f} s "
-        f"(sim time; {wall_s:.1f} s wall)")
-    return 0 if delivered == cfg["n_tables"] and parked == len(robots) else 1
+    say(f"delivered {figures['delivered']}/{figures['orders']} orders with {len(robots)} robots in "
+        f"{figures['makespan_s']:.1f} s (sim time; {wall_s:.1f} s wall): {figures['orders_per_hour']:.1f} orders/h, "
+        f"wait median {figures['wait_median_s']:.1f} s, 95th percentile {figures['wait_p95_s']:.1f} s")
+    ok = figures["delivered"] == figures["orders"] and parked == len(robots) and bumps == 0
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,4 +1,4 @@
-"""tools/fleet_demo.py's pure parts: splitting the tables into runs, giving each run to a robot, settings."""
+"""tools/fleet_demo.py's pure parts: the seeded order stream, the figures, settings."""
 from __future__ import annotations
 
 import sys
@@ -7,24 +7,34 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
-from fleet_demo import FleetDemoError, assign_runs, settings, split_runs
+from fleet_demo import FleetDemoError, order_stream, settings, summarise
 
-from chefbot_common.geometry import Pose2D
-
-
-@pytest.mark.parametrize("n, sizes", [(1, [7]), (2, [4, 3]), (3, [3, 2, 2]), (7, [1] * 7), (9, [1] * 7 + [0, 0])])
-def test_runs_are_neighbours_in_file_order_sizes_differ_by_one_at_most(n: int, sizes: list[int]) -> None:
-    names = [f"t{i}" for i in range(7)]
-    runs = split_runs(names, n)
-    assert [len(r) for r in runs] == sizes
-    assert [t for r in runs for t in r] == names
+ENV = ("CHEFBOT_DEMO_WORLD", "CHEFBOT_DEMO_MAP", "CHEFBOT_DEMO_TABLES_FILE", "CHEFBOT_DEMO_FLEET_FILE",
+       "CHEFBOT_DEMO_TABLES", "CHEFBOT_DEMO_DRIVE", "CHEFBOT_DEMO_ORDERS", "CHEFBOT_DEMO_ORDER_EVERY",
+       "CHEFBOT_DEMO_SEED")
 
 
-def test_each_run_goes_to_the_robot_parked_nearest_to_it() -> None:
-    tables = {"s1": Pose2D(2, -3), "s2": Pose2D(5, -3), "n1": Pose2D(2, 3), "n2": Pose2D(5, 3)}
-    runs = [["s1", "s2"], ["n1", "n2"]]
-    parkings = [Pose2D(0, 1.5), Pose2D(0, -1.5)]          # the first robot parks north
-    assert assign_runs(runs, tables, parkings) == [["n1", "n2"], ["s1", "s2"]]
+def test_the_order_stream_is_seeded_one_or_two_distinct_tables_poisson_gaps() -> None:
+    tables = [f"t{i}" for i in range(9)]
+    a = order_stream(tables, 200, 20.0, seed=3)
+    assert a == order_stream(tables, 200, 20.0, seed=3) and a != order_stream(tables, 200, 20.0, seed=4)
+    assert a[0][0] == 0.0 and all(t1 >= t0 for (t0, _), (t1, _) in zip(a, a[1:], strict=False))
+    assert {len(t) for _, t in a} == {1, 2} and all(len(set(t)) == len(t) for _, t in a)
+    gaps = [t1 - t0 for (t0, _), (t1, _) in zip(a, a[1:], strict=False)]
+    assert 16.0 < sum(gaps) / len(gaps) < 24.0         # mean 20 s within the spread of 199 gaps
+    assert order_stream(["only"], 3, 5.0, 0)[1][1] == ["only"]
+    with pytest.raises(FleetDemoError):
+        order_stream(tables, 0, 20.0, 0)
+
+
+def test_the_figures_count_only_delivered_orders() -> None:
+    orders = [{"placed": 0.0, "ended": 100.0, "ok": True}, {"placed": 10.0, "ended": 50.0, "ok": True},
+              {"placed": 20.0, "ended": 400.0, "ok": False}]
+    f = summarise(orders, 2)
+    assert f["delivered"] == 2 and f["orders"] == 3
+    assert f["makespan_s"] == pytest.approx(400.0)
+    assert f["orders_per_hour"] == pytest.approx(2 / 400.0 * 3600.0)
+    assert f["wait_median_s"] == pytest.approx(70.0) and f["wait_p95_s"] == pytest.approx(100.0)
 
 
 @pytest.mark.parametrize("env, match", [
@@ -35,10 +45,11 @@ def test_each_run_goes_to_the_robot_parked_nearest_to_it() -> None:
     ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_DRIVE": "magic"}, "plugin or firmware"),
     ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_FLEET_FILE": "/nonexistent.yaml"}, "does not exist"),
     ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_TABLES": "table_1,bar_9"}, "unknown tables .'bar_9'."),
+    ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_ORDERS": "many"}, "ORDERS must be a number"),
+    ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_ORDER_EVERY": "-1"}, "gap > 0"),
 ])
 def test_bad_settings_are_named(monkeypatch: pytest.MonkeyPatch, env: dict, match: str) -> None:
-    for k in ("CHEFBOT_DEMO_WORLD", "CHEFBOT_DEMO_MAP", "CHEFBOT_DEMO_TABLES_FILE", "CHEFBOT_DEMO_FLEET_FILE",
-              "CHEFBOT_DEMO_TABLES", "CHEFBOT_DEMO_DRIVE"):
+    for k in ENV:
         monkeypatch.delenv(k, raising=False)
     for k, v in env.items():
         monkeypatch.setenv(k, v)
@@ -46,14 +57,22 @@ def test_bad_settings_are_named(monkeypatch: pytest.MonkeyPatch, env: dict, matc
         settings()
 
 
-def test_the_hotel_default_three_robots_each_serve_one_row(monkeypatch: pytest.MonkeyPatch) -> None:
-    for k in ("CHEFBOT_DEMO_WORLD", "CHEFBOT_DEMO_MAP", "CHEFBOT_DEMO_TABLES_FILE", "CHEFBOT_DEMO_FLEET_FILE",
-              "CHEFBOT_DEMO_TABLES", "CHEFBOT_DEMO_DRIVE"):
+def test_a_fleet_file_without_a_kitchen_is_refused(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    for k in ENV:
+        monkeypatch.delenv(k, raising=False)
+    fleet = tmp_path / "fleet.yaml"
+    fleet.write_text("robots:\n  - {name: a, parking: {x: 0, y: 0}}\n  - {name: b, parking: {x: 0, y: 1}}\n")
+    monkeypatch.setenv("CHEFBOT_DEMO_ROBOTS", "2")
+    monkeypatch.setenv("CHEFBOT_DEMO_FLEET_FILE", str(fleet))
+    with pytest.raises(FleetDemoError, match="no kitchen pose"):
+        settings()
+
+
+def test_the_hotel_default_is_one_order_per_table_on_average(monkeypatch: pytest.MonkeyPatch) -> None:
+    for k in ENV:
         monkeypatch.delenv(k, raising=False)
     monkeypatch.setenv("CHEFBOT_DEMO_ROBOTS", "3")
     cfg = settings()
     assert [r.name for r in cfg["robots"]] == ["chefbot1", "chefbot2", "chefbot3"]
-    # chefbot1 parks at y 0 (the middle row), chefbot2 at -1.5 (south), chefbot3 at 1.5 (north)
-    assert cfg["runs"] == [["table_4", "table_5", "table_6"], ["table_1", "table_2", "table_3"],
-                           ["table_7", "table_8", "table_9"]]
-    assert cfg["n_tables"] == 9 and cfg["drive"] == "plugin"
+    assert len(cfg["stream"]) == 9 and cfg["drive"] == "plugin"
+    assert {t for _, ts in cfg["stream"] for t in ts} <= {f"table_{i}" for i in range(1, 10)}
