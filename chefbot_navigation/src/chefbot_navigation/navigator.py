@@ -77,6 +77,7 @@ RETREAT_LOOKAHEAD = 0.25  # m back along the trail the retreat steers to
 RETREAT_SPEED = 0.1     # m/s
 MAX_ESCAPES = 2         # escapes (reversing along the trail to room to turn) per goal
 ESCAPE_BEYOND = 0.3     # m an escape reverses on after the first place with room to turn
+ESCAPE_TURN_S = 6.0     # s an escape may turn on the spot to put its back to the way it came
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
 RECOVERIES = ("clear_costmaps", "rotate", "back_off")
@@ -523,21 +524,37 @@ class Navigator:
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
         dx, dy = target.x - pose.x, target.y - pose.y
         lx, ly = -(c * dx + s * dy), -(-s * dx + c * dy)      # mirrored: the target as if it were ahead
-        if lx <= 0.0 or abs(math.atan2(ly, lx)) > 1.0:
-            return 0.0, 0.0, True                                # the trail is not behind the robot
-        curvature = 2.0 * ly / (lx * lx + ly * ly)
-        v = -RETREAT_SPEED
-        w = -v * curvature
-        w = min(max(w, -self.cp.max_vel_theta), self.cp.max_vel_theta)
         local = self.costmap.window(pose.x, pose.y, self.p.local_window, self.p.local_window)
         touched = getattr(self.controller, "without_touched", None)
         if self.recovery == "escape" and touched is not None:
             local = touched(local, pose)     # a robot wedged in a gap's mouth may brush what it touches
+        if lx <= 0.0 or abs(math.atan2(ly, lx)) > 1.0:
+            # the trail is not behind the robot.  An escape may turn back first: a robot that began to turn
+            # on the spot in a dead-end aisle and was stopped part-way stands askew to the way it came (the
+            # cafe's 0.50 m aisle, its camera bar ~2 cm from a table: both escapes ended at once and the
+            # goal aborted); turning back sweeps only what the turn had swept
+            return self._turn_back(t, pose, math.atan2(-dy, -dx), local)
+        curvature = 2.0 * ly / (lx * lx + ly * ly)
+        v = -RETREAT_SPEED
+        w = -v * curvature
+        w = min(max(w, -self.cp.max_vel_theta), self.cp.max_vel_theta)
         arc = getattr(self.controller, "arc_collides", None)
         blocked = arc(pose, v, w, local) if arc is not None else _arc_blocked(local, pose, v, RETREAT_LOOKAHEAD)
         if blocked:     # something came behind the robot (a guest, another robot): stop retreating
             return 0.0, 0.0, True
         return v, w, False
+
+    def _turn_back(self, t: float, pose: Pose2D, heading: float, local) -> tuple[float, float, bool]:
+        """(v, w, done) of an escape's turn on the spot to ``heading`` (its back towards the trail), for at
+        most ESCAPE_TURN_S; done at once for a retreat, or when the turn would sweep into something."""
+        rs = self.recovery_state
+        err = wrap_angle(heading - pose.yaw)
+        check = getattr(self.controller, "rotation_collides", None)
+        if self.recovery != "escape" or check is None or t - rs.setdefault("turn_t0", t) > ESCAPE_TURN_S \
+                or check(pose, err, local)[0]:
+            return 0.0, 0.0, True
+        speed = min(self.p.rotate_speed, max(self.cp.min_in_place_vel_theta, self.cp.rotation_gain * abs(err)))
+        return 0.0, math.copysign(speed, err), False
 
     def _recover(self, t: float, pose: Pose2D) -> StepResult:
         rs = self.recovery_state

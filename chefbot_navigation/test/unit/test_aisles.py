@@ -107,6 +107,27 @@ def test_trail_is_the_way_back(urdf: str) -> None:
     assert nav.trail[-1].x == pytest.approx(1.5, abs=0.051) and len(nav.trail) <= 11
 
 
+def test_an_escape_stopped_askew_turns_back_before_it_reverses(urdf: str) -> None:
+    """A robot that began to turn on the spot in a dead-end aisle and was stopped part-way stands askew to
+    the way it came: the escape turns it back (its back to the trail) and then reverses; a retreat (giving
+    way) does not turn; the turn is bounded in time.  (A turn back that would sweep into something is
+    refused by the controller's rotation check, tested above.)"""
+    run = Run(slot_map(0.60), urdf, Pose2D(1.5, 1.5, 0.0))
+    nav = run.nav
+    for x in np.arange(0.5, 1.51, 0.01):                 # it came from the west, driving east
+        nav._record(Pose2D(float(x), 1.5, 0.0))
+    askew = Pose2D(1.5, 1.5, 1.2)                        # turned 69 deg left, more than the 1 rad a reverse arc takes
+    nav._start_retreat(0.0, askew, "test", "escape")
+    v, w, done = nav._retreat_command(0.1, askew, 3.0)
+    assert not done and v == 0.0 and w < 0.0            # turning back to the right
+    v, w, done = nav._retreat_command(0.2, Pose2D(1.5, 1.5, 0.3), 3.0)
+    assert not done and v < 0.0                          # back to the trail: reversing along it
+    nav._start_retreat(0.0, askew, "test", "retreat")
+    assert nav._retreat_command(0.1, askew, 3.0)[2]       # giving way: no turning
+    nav._start_retreat(0.0, askew, "test", "escape")
+    assert nav._retreat_command(0.1 + 100.0, askew, 3.0)[2]   # not for ever
+
+
 def test_too_narrow_for_the_inscribed_circle_is_refused_at_once(urdf: str) -> None:
     run = Run(slot_map(0.30), urdf, Pose2D(1.0, 1.2, 0.0))
     res, took, _, events, _, _ = run.go(Goal(5.0, 1.5, 0.0))
