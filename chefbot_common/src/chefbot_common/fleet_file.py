@@ -75,8 +75,9 @@ def load_fleet(path: str | Path, min_apart: float = MIN_APART) -> list[FleetRobo
             for kind in ("parking", "start", "charger"):
                 pose = getattr(r, kind)
                 if pose is not None and pose.distance(kitchen) < min_apart:
-                    raise FleetFileError(f"{path}: the kitchen is {pose.distance(kitchen):.2f} m from {r.name}'s {kind} "
-                                         f"pose, closer than {min_apart:g} m: a robot standing there would block it")
+                    raise FleetFileError(f"{path}: the kitchen is {pose.distance(kitchen):.2f} m from {r.name}'s "
+                                         f"{kind} pose, closer than {min_apart:g} m: a robot standing there would "
+                                         "block it")
     return robots
 
 

@@ -40,8 +40,8 @@ def test_the_shipped_fleet_files_load_with_three_robots(site: str) -> None:
 
 def test_the_kitchen_is_optional_and_clear_of_the_robots(tmp_path: Path) -> None:
     assert load_kitchen(write(tmp_path, "robots: [{name: a, parking: {x: 0, y: 0}}]")) is None
-    assert load_kitchen(write(tmp_path, "kitchen: {x: 2, y: 1, yaw: 3.0}\nrobots: [{name: a, parking: {x: 0, y: 0}}]")) \
-        == Pose2D(2.0, 1.0, 3.0)
+    text = "kitchen: {x: 2, y: 1, yaw: 3.0}\nrobots: [{name: a, parking: {x: 0, y: 0}}]"
+    assert load_kitchen(write(tmp_path, text)) == Pose2D(2.0, 1.0, 3.0)
 
 
 @pytest.mark.parametrize("text, match", [
