@@ -148,7 +148,7 @@ class FleetDispatchTest(unittest.TestCase):
 
     def test_2_a_restarted_dispatcher_resumes_the_same_queue(self) -> None:
         ids = [self.deliver("table_3"), self.deliver("table_9"), self.deliver("table_6", "table_2")]
-        wait_for(lambda: any(self.watch.orders()[i].state == "on_the_way" for i in ids), WALL,
+        wait_for(lambda: any(getattr(self.watch.orders().get(i), "state", "") == "on_the_way" for i in ids), WALL,
                  "an order on the way")
         before = {i: (o.state, o.assigned) for i, o in self.watch.orders().items() if o.state not in FINAL}
         stamps = self.watch.stamps
