@@ -425,11 +425,7 @@ class Dispatcher:
         """When the robot is back at the kitchen after its current trip (and its orders' ETAs into ``out``)."""
         trip = r.schedule.current
         assert trip is not None
-        t = now
-        if r.state in ("loading", "serving"):
-            t = max(now, r.wait_until)
-        else:
-            t = self._leg_end(r, now)
+        t = max(now, r.wait_until) if r.state in ("loading", "serving") else self._leg_end(r, now)
         here = r.place or self.site.kitchen
         stops = list(r.stops)
         if r.state in ("delivering", "retrying") and stops and here == stops[0]:
