@@ -102,10 +102,15 @@ def junit_totals(path: Path, label: str) -> Totals:
 
     A suite may declare more errors/failures than it has failing cases (rosunit
     reports an exception outside a test method, or a crashed test node, only in
-    the suite's ``errors`` attribute): the difference counts as failures.
+    the suite's ``errors`` attribute): the difference counts as failures.  A file that is not XML (a
+    test node killed while rosunit wrote it, or before) is one failure naming the file.
     """
     t = Totals()
-    root = ET.parse(path).getroot()
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        return Totals(failed=1, failures=[f"{label}: unreadable result file {path.name} ({e}): the test "
+                                          "process died before it finished writing it"])
     suites = [root] if root.tag == "testsuite" else list(root.iter("testsuite"))
     for suite in suites:
         failed_here = 0

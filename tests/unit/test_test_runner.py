@@ -69,6 +69,16 @@ def test_junit_suite_error_without_cases_is_a_failure(tmp_path: Path) -> None:
     assert t.failed == 1 and t.passed == 0
 
 
+def test_an_empty_or_torn_result_file_is_a_failure_not_a_crash(tmp_path: Path) -> None:
+    # rosunit opens its file first: a test node killed before it finished leaves it empty or torn
+    for text in ("", '<testsuite tests="1"><testcase classname="c" name="t"/>'):
+        xml = tmp_path / "r.xml"
+        xml.write_text(text)
+        t = run_tests.junit_totals(xml, "lbl")
+        assert (t.passed, t.failed) == (0, 1)
+        assert "unreadable result file r.xml" in t.failures[0]
+
+
 def test_junit_suite_error_beside_passing_cases_counts(tmp_path: Path) -> None:
     # rosunit: the test method passed, but the node then died (exit 1) -> errors="1"
     xml = tmp_path / "r.xml"
@@ -201,6 +211,7 @@ def test_sim_timed_knows_the_workspace_tests() -> None:
     by_name = {f.stem: f for _, f in run_tests.rostest_files()}
     assert run_tests.sim_timed(by_name["delivery_route_firmware"])
     assert run_tests.sim_timed(by_name["slam_workflow"])
+    assert run_tests.sim_timed(by_name["fleet_netns"])       # the hosts' launches run the simulator
     assert not run_tests.sim_timed(by_name["diff_drive"])
 
 
