@@ -41,12 +41,17 @@ class SimNodeParams:
     robots: int = 1                   # with fleet_file: how many of its robots (its first N; >= 1)
     cmd_vel_topic: str = "cmd_vel"    # with fleet_file: each robot's velocity command topic, relative to its
                                       # namespace (cmd_vel_guarded behind chefbot_bringup's cliff guard)
+    model_timeout: float = 120.0      # [s] with fleet_file: wall time to wait for every robot's
+                                      # <name>/robot_description (its stack, perhaps on its own PC, started after
+                                      # the world); then the node ends naming the missing ones (>= 0)
 
     def __post_init__(self) -> None:
         if not self.fleet_file and not self.robot_description:
             raise ValueError("robot_description is not set (include chefbot_description's robot_state.launch.xml)")
         if self.robots < 1:
             raise ValueError(f"robots must be >= 1, got {self.robots}")
+        if not (math.isfinite(self.model_timeout) and self.model_timeout >= 0):
+            raise ValueError(f"model_timeout must be >= 0 s, got {self.model_timeout}")
         if not self.cmd_vel_topic or self.cmd_vel_topic.startswith("/"):
             raise ValueError(f"cmd_vel_topic must be a relative topic name, got {self.cmd_vel_topic!r}")
         if not self.world:
@@ -134,22 +139,32 @@ class FleetMember:
     charger: tuple[float, float, float] | None = None
 
 
-def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[FleetMember]:
-    """The robots of ``~fleet_file`` the sim holds (its first ``~robots``), each with its model from
-    ``<name>/robot_description``.  ParamError (a ValueError) names a missing model or a bad file."""
+def fleet_robots(node: SimNodeParams) -> list:
+    """The robots of ``~fleet_file`` the sim holds (its first ``~robots``; chefbot_common.fleet_file's
+    FleetRobot).  ParamError (a ValueError) names a bad file."""
     from chefbot_common.fleet_file import FleetFileError, load_fleet, select
 
     try:
-        robots = select(load_fleet(node.fleet_file), node.robots, node.fleet_file)
+        return select(load_fleet(node.fleet_file), node.robots, node.fleet_file)
     except FleetFileError as e:
         raise ParamError(f"parameter ~fleet_file: {e}") from None
+
+
+def missing_models(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[str]:
+    """The names of the fleet's robots whose ``<name>/robot_description`` is not set yet."""
+    return [r.name for r in fleet_robots(node) if not get(f"{r.name}/robot_description", "")]
+
+
+def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[FleetMember]:
+    """The robots of ``~fleet_file`` the sim holds (its first ``~robots``), each with its model from
+    ``<name>/robot_description``.  ParamError (a ValueError) names a missing model or a bad file."""
     out = []
-    for r in robots:
+    for r in fleet_robots(node):
         urdf = get(f"{r.name}/robot_description", "")
         if not urdf:
-            raise ParamError(f"{r.name}/robot_description is not set: start the robot's model in namespace "
-                             f"{r.name} (chefbot_description's robot_state.launch.xml with frame_prefix "
-                             f"'{r.name}/')")
+            raise ParamError(f"{r.name}/robot_description is not set: start the robot's stack (chefbot_sim "
+                             f"fleet_robot.launch robot:={r.name}, or chefbot_description's "
+                             f"robot_state.launch.xml with frame_prefix '{r.name}/' in namespace {r.name})")
         charger = (r.charger.x, r.charger.y, r.charger.yaw) if r.charger is not None else None
         out.append(FleetMember(r.name, urdf, (r.start.x, r.start.y, r.start.yaw), charger))
     return out

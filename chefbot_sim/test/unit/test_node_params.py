@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from chefbot_common.params import ParamError
-from chefbot_sim.node_params import FIRMWARE_MAX_LAG, STEPS_PER_BATCH, pacing, read_sim_params
+from chefbot_sim.node_params import (
+    FIRMWARE_MAX_LAG,
+    STEPS_PER_BATCH,
+    fleet_members,
+    missing_models,
+    pacing,
+    read_sim_params,
+)
 from chefbot_sim.requests import SimRequests
 
 
@@ -34,6 +41,7 @@ def test_defaults_and_sim_options() -> None:
     ({**BASE, "~gui": "yes"}, "~gui"),
     ({**BASE, "~drive": "teleport"}, "drive"),
     ({**BASE, "~seed": 1.5}, "~seed"),
+    ({**BASE, "~model_timeout": -1.0}, "~model_timeout"),
 ])
 def test_bad_params_are_named(params: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
@@ -104,3 +112,22 @@ def test_sim_stamp_rounds_to_the_nanosecond() -> None:
     assert sim_stamp(t) == rospy.Time(125, 300000000)
     assert sim_stamp(124.9) + rospy.Duration(0.3) == sim_stamp(125.2)
     assert sim_stamp(0.0) == rospy.Time(0)
+
+
+FLEET = "chefbot_navigation/maps/hotel_fleet.yaml"
+
+
+def test_a_fleet_world_names_the_robots_whose_models_are_missing(pkg) -> None:
+    """The world may start before the robots' stacks (each on its own PC): the node waits for the
+    models it lacks, then names them."""
+    fleet = {"~world": "/tmp/w.yaml", "~fleet_file": str(pkg.parent / FLEET), "~robots": 2}
+    node, _ = read_sim_params(getter(fleet))
+    assert node.model_timeout > 0
+    assert missing_models(node, getter({})) == ["chefbot1", "chefbot2"]
+    models = {"chefbot2/robot_description": "<robot name='c2'/>"}
+    assert missing_models(node, getter(models)) == ["chefbot1"]
+    with pytest.raises(ParamError, match="chefbot1/robot_description is not set.*fleet_robot.launch robot:=chefbot1"):
+        fleet_members(node, getter(models))
+    models["chefbot1/robot_description"] = "<robot name='c1'/>"
+    assert missing_models(node, getter(models)) == []
+    assert [m.name for m in fleet_members(node, getter(models))] == ["chefbot1", "chefbot2"]
