@@ -28,17 +28,17 @@ _STATUS_COLOURS = {
 }
 
 
-def ui_path() -> Path:
-    """The Designer file: the source tree's ``ui/`` (devel space) or the installed share dir."""
+def ui_path(name: str = "robot_gui.ui") -> Path:
+    """The Designer file ``name``: the source tree's ``ui/`` (devel space) or the installed share dir."""
     here = Path(__file__).resolve()
-    source = here.parents[2] / "ui" / "robot_gui.ui"
+    source = here.parents[2] / "ui" / name
     if source.exists():
         return source
     try:
         import rospkg  # only to find the installed share directory
-        return Path(rospkg.RosPack().get_path("chefbot_gui")) / "ui" / "robot_gui.ui"
+        return Path(rospkg.RosPack().get_path("chefbot_gui")) / "ui" / name
     except Exception as e:  # rospkg raises several types; all mean "not found"
-        raise FileNotFoundError(f"robot_gui.ui not found next to {here} nor via rospkg: {e}") from e
+        raise FileNotFoundError(f"{name} not found next to {here} nor via rospkg: {e}") from e
 
 
 class RobotGuiWindow(QWidget):
