@@ -46,7 +46,7 @@ def fleet_places(fleet_file: str) -> tuple[list[str], list[Marker]]:
     if not fleet_file:
         return [], []
     robots = load_fleet(fleet_file)
-    places = [Marker(f"charger_{r.name}", f"{r.name} charger", r.charger.x, r.charger.y, r.charger.yaw)
+    places = [Marker(f"charger_{r.name}", "charger", r.charger.x, r.charger.y, r.charger.yaw)
               for r in robots if r.charger is not None]
     kitchen = load_kitchen(fleet_file)
     if kitchen is not None:

@@ -432,7 +432,9 @@ class FleetPresenter:
         else:
             state = disp.state
             text = ROBOT_WORDS.get(disp.state, disp.state or "?")
-            if disp.place and disp.state not in ("idle", "paused", "fault", "offline"):
+            # the dispatcher's own places ("parking:chefbot1", "charger:chefbot1") are in the state word
+            own = disp.place.partition(":")[0] in ("parking", "charger")
+            if disp.place and not own and disp.state not in ("idle", "paused", "fault", "offline"):
                 text += f" — {self.label(disp.place)}"
             if disp.reason:
                 text += f" ({disp.reason})"

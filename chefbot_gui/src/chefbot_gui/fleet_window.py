@@ -54,9 +54,9 @@ class FleetWindow(QWidget):
             table.verticalHeader().setVisible(False)
             table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
             table.horizontalHeader().setStretchLastSection(True)
-        self.mapView.set_markers(
-            Marker("home", "Home", presenter.home.pose.x, presenter.home.pose.y, presenter.home.pose.yaw),
-            [Marker(d.key, d.label, d.pose.x, d.pose.y, d.pose.yaw) for d in presenter.tables])
+        # no Home: the tables file's home is one robot's start; the fleet's robots park by the fleet file
+        self.mapView.set_markers(None, [Marker(d.key, d.label, d.pose.x, d.pose.y, d.pose.yaw)
+                                        for d in presenter.tables])
         self.mapView.set_places(places)
 
         self.tableList.itemSelectionChanged.connect(self._tables_changed)
@@ -221,6 +221,7 @@ class FleetWindow(QWidget):
         for r, (cells, key) in enumerate(zip(rows, keys, strict=True)):
             for c, (text, colour) in enumerate(cells):
                 item = QTableWidgetItem(text)
+                item.setToolTip(text)     # cut texts (a long trip or reason) in full
                 item.setData(Qt.UserRole, key)
                 if colour:
                     item.setForeground(QBrush(QColor(colour)))

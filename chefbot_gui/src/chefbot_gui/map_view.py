@@ -98,8 +98,8 @@ class MapView(QWidget):
         """True once a map has been set."""
         return self._image is not None
 
-    def set_markers(self, home: Marker, tables: Sequence[Marker]) -> None:
-        """The destinations to draw (from the shared tables YAML)."""
+    def set_markers(self, home: Marker | None, tables: Sequence[Marker]) -> None:
+        """The destinations to draw (from the shared tables YAML); ``home`` None: no home marker."""
         self._home = home
         self._markers = list(tables)
         self.update()

@@ -70,6 +70,7 @@ QUEUE = QueueSnapshot(
         DispatchRobot("chefbot3", "paused", reason="paused by staff"),
     ),
 )
+CHARGING = DispatchRobot("chefbot3", "charging", "charger:chefbot3", reason="battery 18 %", battery=0.18)
 
 
 def test_starts_connecting_then_no_dispatcher_after_the_timeout() -> None:
@@ -126,6 +127,8 @@ def test_robot_rows_state_battery_trip_and_colours_in_fleet_order() -> None:
     assert (rows["chefbot1"].battery_percent, rows["chefbot1"].battery_text) == (81, "81 %")
     assert rows["chefbot2"].state_text == "to the kitchen — Kitchen" and rows["chefbot2"].battery_low
     assert rows["chefbot3"].state_text == "paused (paused by staff)" and rows["chefbot3"].trip_text == "—"
+    p.on_queue(QueueSnapshot(QUEUE.orders, (*QUEUE.robots[:2], CHARGING)))
+    assert p.state().robots[2].state_text == "charging (battery 18 %)"      # its own charger: no place named
     st = p.state()
     assert st.status == "fleet: 2 of 3 robots in service, 3 open orders" and st.tone == "wait"
 
