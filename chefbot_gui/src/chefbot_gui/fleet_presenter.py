@@ -393,7 +393,7 @@ class FleetPresenter:
         what = self._requests.pop(request, "order")
         oid = order_id or "?"
         if state == "lost":
-            self._set_reply(f"{what}: lost contact with the dispatcher", False)
+            self._set_reply(f"{what}: lost contact with the dispatcher (its database keeps accepted orders)", False)
         else:
             tail = f": {reason}" if reason else ""
             self._set_reply(f"order {oid} {state}{tail}", state == "served")

@@ -51,6 +51,7 @@ class FleetWindow(QWidget):
             item.setTextAlignment(Qt.AlignCenter)
             self.tableList.addItem(item)
         for table in (self.robotTable, self.orderTable):
+            table.setFocusPolicy(Qt.ClickFocus)   # no focus frame that reads as a selected robot or order
             table.verticalHeader().setVisible(False)
             table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
             table.horizontalHeader().setStretchLastSection(True)

@@ -232,7 +232,7 @@ def test_lost_order_and_failed_order_texts() -> None:
     p.toggle_table("table_1")
     p.add_order()
     p.on_order_done(1, "", "lost", "")
-    assert p.state().reply == "order for Table 1: lost contact with the dispatcher"
+    assert p.state().reply == "order for Table 1: lost contact with the dispatcher (its database keeps accepted orders)"
     p.toggle_table("table_2")
     p.add_order()
     p.on_order_done(2, "o3", "failed", "no robot could reach table_2")
