@@ -378,8 +378,11 @@ class FleetPresenter:
     def on_order_accepted(self, request: int, status_text: str) -> None:
         """The dispatcher accepted order request ``request``; ``status_text`` is ``order <id>``."""
         what = self._requests.get(request, "order")
-        oid = status_text.split()[-1] if status_text.strip() else "?"
-        self._set_reply(f"{what}: accepted as {oid}", True)
+        words = status_text.split()
+        # the dispatcher accepts with "order <id>"; a goal finished before it was seen active carries
+        # its final text instead, so the id is only taken from the accepting form
+        accepted = f"accepted as {words[1]}" if len(words) == 2 and words[0] == "order" else "accepted"
+        self._set_reply(f"{what}: {accepted}", True)
         self._changed()
 
     def on_order_refused(self, request: int, reason: str) -> None:

@@ -18,7 +18,7 @@ from PyQt5.QtWidgets import QHeaderView, QListWidgetItem, QTableWidget, QTableWi
 from chefbot_common.grid import GridInfo
 from chefbot_gui.fleet_presenter import FleetPresenter, FleetViewState, OrderRow, RobotRow
 from chefbot_gui.map_view import FleetMarker, Marker
-from chefbot_gui.window import _STATUS_COLOURS, ui_path
+from chefbot_gui.window import STATUS_COLOURS, ui_path
 
 TICK_MS = 500  # presenter clock: connection time-out, stale robots
 REPLY_COLOURS = {True: "#1b5e20", False: "#b71c1c", None: "#37474f"}
@@ -156,7 +156,7 @@ class FleetWindow(QWidget):
         self._rendering = True
         try:
             self.statusLabel.setText(st.status)
-            self.statusLabel.setStyleSheet(f"{self._status_style} background: {_STATUS_COLOURS[st.tone]};")
+            self.statusLabel.setStyleSheet(f"{self._status_style} background: {STATUS_COLOURS[st.tone]};")
             self.hintLabel.setText(st.hint)
             self.replyLabel.setText(st.reply)
             self.replyLabel.setStyleSheet(f"color: {REPLY_COLOURS[st.reply_ok]};")

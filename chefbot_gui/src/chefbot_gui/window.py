@@ -19,7 +19,7 @@ from chefbot_gui.map_view import Marker
 from chefbot_gui.presenter import DeliveryPresenter, OrderMode, Outcome, Phase, Pose, ViewState, fmt_eta, fmt_metres
 
 TICK_MS = 200  # presenter clock: wait countdown, connection time-out, stale diagnostics
-_STATUS_COLOURS = {
+STATUS_COLOURS = {  # status-line backgrounds by tone (the fleet window uses them too)
     "bad": "#ffcdd2",
     "busy": "#bbdefb",
     "good": "#c8e6c9",
@@ -167,7 +167,7 @@ class RobotGuiWindow(QWidget):
         self._rendering = True
         try:
             self.statusLabel.setText(st.status)
-            self.statusLabel.setStyleSheet(f"{self._status_style} background: {_STATUS_COLOURS[self._tone(st)]};")
+            self.statusLabel.setStyleSheet(f"{self._status_style} background: {STATUS_COLOURS[self._tone(st)]};")
             self.hintLabel.setText(st.hint)
             self.goButton.setEnabled(st.go_enabled)
             self.homeButton.setEnabled(st.home_enabled)

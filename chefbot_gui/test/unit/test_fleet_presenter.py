@@ -214,6 +214,10 @@ def test_add_order_sends_one_goal_with_tables_priority_and_robot_then_shows_the_
     assert p.state().reply == "order for Table 5, Table 2: accepted as o7" and p.state().reply_ok
     p.on_order_done(1, "o7", "served", "")
     assert p.state().reply == "order o7 served"
+    p.toggle_table("table_1")
+    p.add_order()
+    p.on_order_accepted(2, "order o8 served")     # seen first when already done: no id guessed
+    assert p.state().reply == "order for Table 1: accepted"
 
 
 def test_refused_order_shows_the_dispatchers_reason() -> None:
