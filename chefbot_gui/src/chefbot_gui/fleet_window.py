@@ -62,6 +62,7 @@ class FleetWindow(QWidget):
 
         self.tableList.itemSelectionChanged.connect(self._tables_changed)
         self.mapView.tableClicked.connect(presenter.toggle_table)
+        self.mapView.robotClicked.connect(presenter.select_robot)
         self.robotTable.itemSelectionChanged.connect(self._robot_changed)
         self.orderTable.itemSelectionChanged.connect(self._order_changed)
         self.prioritySpin.valueChanged.connect(lambda v: presenter.set_priority(max(1.0, float(v))))

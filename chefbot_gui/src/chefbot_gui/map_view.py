@@ -67,6 +67,7 @@ class MapView(QWidget):
     """Draws the restaurant map with tables, route and robot; click a table to select it."""
 
     tableClicked = pyqtSignal(str)
+    robotClicked = pyqtSignal(str)   # fleet mode: a click on a robot (not on a table)
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -186,13 +187,27 @@ class MapView(QWidget):
                 best, best_d = m.key, d
         return best
 
+    def robot_at(self, px: float, py: float) -> str | None:
+        """Name of the fleet robot under (or near) a widget pixel, if any."""
+        best, best_d = None, math.inf
+        for r in self._fleet:
+            p = self.world_to_widget(r.x, r.y)
+            d = math.hypot(p.x() - px, p.y() - py)
+            if d < best_d and d <= max(CLICK_RADIUS_PX * 0.6, self.metres_to_pixels(r.radius * 1.5)):
+                best, best_d = r.name, d
+        return best
+
     # ------------------------------------------------------------------ Qt events
     def mousePressEvent(self, event: QMouseEvent) -> None:
-        """Qt: a left click on a table marker emits tableClicked with its key."""
+        """Qt: a left click on a table marker emits tableClicked with its key; elsewhere, on a
+        fleet robot, robotClicked with its name."""
         if event.button() == Qt.LeftButton:
             key = self.table_at(event.pos().x(), event.pos().y())
+            robot = self.robot_at(event.pos().x(), event.pos().y()) if key is None else None
             if key is not None:
                 self.tableClicked.emit(key)
+            elif robot is not None:
+                self.robotClicked.emit(robot)
         super().mousePressEvent(event)
 
     def paintEvent(self, event: QPaintEvent) -> None:

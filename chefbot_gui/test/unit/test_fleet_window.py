@@ -221,3 +221,14 @@ def test_unknown_robot_in_the_queue_and_robot_the_dispatcher_does_not_list(gui) 
     assert "visitor" in {m.name for m in w.mapView.fleet()}
     assert [w.robotCombo.itemText(i) for i in range(w.robotCombo.count())] == [
         "any robot", "chefbot1", "chefbot2", "chefbot3"]
+
+
+def test_a_click_on_a_robot_on_the_map_selects_its_row(qtbot, gui) -> None:
+    w, presenter, port, _ = gui
+    pt = w.mapView.world_to_widget(0.0, 1.5).toPoint()          # chefbot3, paused
+    qtbot.mouseClick(w.mapView, Qt.LeftButton, pos=pt)
+    assert presenter.selected_robot == "chefbot3"
+    rows = w.robotTable.selectionModel().selectedRows()
+    assert [w.robotTable.item(r.row(), 0).text() for r in rows] == ["● chefbot3"]
+    qtbot.mouseClick(w.resumeButton, Qt.LeftButton)
+    assert port.calls == [("robot", "chefbot3", "resume")]
