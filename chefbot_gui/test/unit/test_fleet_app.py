@@ -39,3 +39,19 @@ def test_parse_orders() -> None:
 def test_bad_params_are_refused_naming_the_field(field, value) -> None:
     with pytest.raises(ValueError, match=field):
         FleetGuiParams(tables_file="t.yaml", **{field: value})
+
+
+def test_the_node_opens_without_a_master_and_says_so(tmp_path) -> None:
+    """``fleet_gui`` with no ROS master: params from the command line, a screenshot, exit 0."""
+    import os
+    import subprocess
+
+    from conftest import _free_port
+
+    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{_free_port()}", QT_QPA_PLATFORM="offscreen")
+    png = tmp_path / "offline.png"
+    out = subprocess.run(["rosrun", "chefbot_gui", "fleet_gui", f"_tables_file:={TABLES}", f"_fleet_file:={FLEET}",
+                          "--screenshot", str(png), "--screenshot-delay", "1.0"],
+                         env=env, capture_output=True, text=True, timeout=60, start_new_session=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "no ROS master at" in out.stderr and png.stat().st_size > 5000
