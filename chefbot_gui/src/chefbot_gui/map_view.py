@@ -1,7 +1,9 @@
-"""Live map widget: occupancy grid, global plan, table markers, robot.
+"""Live map widget: occupancy grid, global plan, table markers, robot; in fleet mode every robot.
 
 Qt only (no ROS): it is given plain data by the window and emits
-``tableClicked(key)`` when staff click near a table marker.  Coordinates go
+``tableClicked(key)`` when staff click near a table marker.  The fleet window adds
+:class:`FleetMarker` robots (own colour, footprint, remaining path; stale ones hollow) and
+fixed places (kitchen, chargers) with :meth:`MapView.set_fleet` and :meth:`MapView.set_places`.  Coordinates go
 map frame (m) → grid image pixels (:class:`chefbot_common.grid.GridInfo`) →
 widget pixels (uniform scale + offset that fit the image in the widget).
 """
@@ -44,10 +46,28 @@ class Marker:
     yaw: float = 0.0
 
 
+@dataclass(frozen=True)
+class FleetMarker:
+    """One robot of a fleet: colour ``#rrggbb``, pose (m, m, rad), footprint polygon in the map
+    frame (m; empty: a circle of ``radius`` m), remaining path (map frame, m); ``stale``: its pose
+    is old (drawn hollow, no path)."""
+
+    name: str
+    colour: str
+    x: float
+    y: float
+    yaw: float = 0.0
+    footprint: tuple[Point, ...] = ()
+    radius: float = ROBOT_RADIUS_M
+    path: tuple[Point, ...] = ()
+    stale: bool = False
+
+
 class MapView(QWidget):
     """Draws the restaurant map with tables, route and robot; click a table to select it."""
 
     tableClicked = pyqtSignal(str)
+    robotClicked = pyqtSignal(str)   # fleet mode: a click on a robot (not on a table)
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -61,6 +81,9 @@ class MapView(QWidget):
         self._selected: str | None = None
         self._current: str | None = None
         self._queued: tuple[str, ...] = ()
+        self._selected_many: frozenset[str] = frozenset()
+        self._fleet: tuple[FleetMarker, ...] = ()
+        self._places: tuple[Marker, ...] = ()
         self.setMouseTracking(False)
         self.setAutoFillBackground(True)
 
@@ -76,8 +99,8 @@ class MapView(QWidget):
         """True once a map has been set."""
         return self._image is not None
 
-    def set_markers(self, home: Marker, tables: Sequence[Marker]) -> None:
-        """The destinations to draw (from the shared tables YAML)."""
+    def set_markers(self, home: Marker | None, tables: Sequence[Marker]) -> None:
+        """The destinations to draw (from the shared tables YAML); ``home`` None: no home marker."""
         self._home = home
         self._markers = list(tables)
         self.update()
@@ -94,6 +117,25 @@ class MapView(QWidget):
         self._selected, self._current, self._queued = selected, current, tuple(queued)
         self.update()
 
+    def set_fleet(self, robots: Sequence[FleetMarker]) -> None:
+        """The fleet's robots to draw (fleet mode); empty: none."""
+        self._fleet = tuple(robots)
+        self.update()
+
+    def fleet(self) -> tuple[FleetMarker, ...]:
+        """The fleet robots drawn now."""
+        return self._fleet
+
+    def set_selected_tables(self, keys: Sequence[str]) -> None:
+        """Tables drawn as selected besides ``set_route``'s one (the fleet's new order)."""
+        self._selected_many = frozenset(keys)
+        self.update()
+
+    def set_places(self, places: Sequence[Marker]) -> None:
+        """Fixed places drawn as small diamonds (kitchen, chargers)."""
+        self._places = tuple(places)
+        self.update()
+
     # ------------------------------------------------------------------ geometry
     def _frame(self) -> GridInfo:
         if self._grid is not None:
@@ -101,6 +143,7 @@ class MapView(QWidget):
         pts = [(m.x, m.y) for m in self._markers] + ([(self._home.x, self._home.y)] if self._home else [])
         if self._pose:
             pts.append(self._pose[:2])
+        pts += [(r.x, r.y) for r in self._fleet] + [(m.x, m.y) for m in self._places]
         if not pts:
             pts = [(0.0, 0.0)]
         x0 = min(p[0] for p in pts) - NO_MAP_MARGIN_M
@@ -144,13 +187,27 @@ class MapView(QWidget):
                 best, best_d = m.key, d
         return best
 
+    def robot_at(self, px: float, py: float) -> str | None:
+        """Name of the fleet robot under (or near) a widget pixel, if any."""
+        best, best_d = None, math.inf
+        for r in self._fleet:
+            p = self.world_to_widget(r.x, r.y)
+            d = math.hypot(p.x() - px, p.y() - py)
+            if d < best_d and d <= max(CLICK_RADIUS_PX * 0.6, self.metres_to_pixels(r.radius * 1.5)):
+                best, best_d = r.name, d
+        return best
+
     # ------------------------------------------------------------------ Qt events
     def mousePressEvent(self, event: QMouseEvent) -> None:
-        """Qt: a left click on a table marker emits tableClicked with its key."""
+        """Qt: a left click on a table marker emits tableClicked with its key; elsewhere, on a
+        fleet robot, robotClicked with its name."""
         if event.button() == Qt.LeftButton:
             key = self.table_at(event.pos().x(), event.pos().y())
+            robot = self.robot_at(event.pos().x(), event.pos().y()) if key is None else None
             if key is not None:
                 self.tableClicked.emit(key)
+            elif robot is not None:
+                self.robotClicked.emit(robot)
         super().mousePressEvent(event)
 
     def paintEvent(self, event: QPaintEvent) -> None:
@@ -167,8 +224,11 @@ class MapView(QWidget):
             qp.setPen(QColor("#616161"))
             qp.drawText(QRectF(ox, oy + 4, s * grid.width, 24), Qt.AlignHCenter, "waiting for the map…")
         self._paint_plan(qp)
+        self._paint_fleet_paths(qp)
         self._paint_markers(qp)
+        self._paint_places(qp)
         self._paint_robot(qp)
+        self._paint_fleet(qp)
         self._paint_scale(qp)
         qp.end()
 
@@ -191,10 +251,11 @@ class MapView(QWidget):
                 colour = QUEUED
             if m.key == self._current:
                 colour = CURRENT
-            if m.key == self._selected:
+            selected = m.key == self._selected or m.key in self._selected_many
+            if selected:
                 colour = SELECTED
             c = self.world_to_widget(m.x, m.y)
-            width = 3.0 if m.key == self._selected else 1.5
+            width = 3.0 if selected else 1.5
             qp.setPen(QPen(QColor("white"), width))
             qp.setBrush(QBrush(colour))
             qp.drawEllipse(c, r, r)
@@ -238,6 +299,52 @@ class MapView(QWidget):
         qp.drawEllipse(c, r, r)
         qp.setPen(QPen(ROBOT, 3.0, Qt.SolidLine, Qt.RoundCap))
         qp.drawLine(c, nose)
+
+    def _paint_fleet_paths(self, qp: QPainter) -> None:
+        for r in self._fleet:
+            if r.stale or len(r.path) < 2:
+                continue
+            colour = QColor(r.colour)
+            colour.setAlpha(190)
+            qp.setPen(QPen(colour, max(2.0, self.metres_to_pixels(0.06)), Qt.DashLine, Qt.RoundCap, Qt.RoundJoin))
+            qp.setBrush(Qt.NoBrush)
+            qp.drawPolyline(QPolygonF([self.world_to_widget(x, y) for x, y in ((r.x, r.y), *r.path)]))
+
+    def _paint_places(self, qp: QPainter) -> None:
+        r = max(5.0, self.metres_to_pixels(0.15))
+        for m in self._places:
+            c = self.world_to_widget(m.x, m.y)
+            qp.setPen(QPen(QColor("#455a64"), 1.5))
+            qp.setBrush(QBrush(QColor("#eceff1")))
+            qp.drawPolygon(QPolygonF([QPointF(c.x(), c.y() - r), QPointF(c.x() + r, c.y()),
+                                      QPointF(c.x(), c.y() + r), QPointF(c.x() - r, c.y())]))
+            self._paint_label(qp, c, r, m.label, QColor("#455a64"))
+
+    def _paint_fleet(self, qp: QPainter) -> None:
+        font = QFont(qp.font())
+        font.setBold(True)
+        qp.setFont(font)
+        for rob in self._fleet:
+            colour = QColor(rob.colour)
+            c = self.world_to_widget(rob.x, rob.y)
+            r = max(6.0, self.metres_to_pixels(rob.radius))
+            if rob.stale:
+                qp.setPen(QPen(colour, 2.0, Qt.DashLine))
+                qp.setBrush(QBrush(QColor(255, 255, 255, 160)))
+            else:
+                qp.setPen(QPen(QColor("white"), 2.0))
+                qp.setBrush(QBrush(colour))
+            if len(rob.footprint) >= 3:
+                qp.drawPolygon(QPolygonF([self.world_to_widget(x, y) for x, y in rob.footprint]))
+            else:
+                qp.drawEllipse(c, r, r)
+            ahead = self.world_to_widget(rob.x + math.cos(rob.yaw), rob.y + math.sin(rob.yaw))
+            dx, dy = ahead.x() - c.x(), ahead.y() - c.y()
+            n = math.hypot(dx, dy) or 1.0
+            nose = QPointF(c.x() + dx / n * 1.8 * r, c.y() + dy / n * 1.8 * r)
+            qp.setPen(QPen(colour if not rob.stale else QColor("#9e9e9e"), 3.0, Qt.SolidLine, Qt.RoundCap))
+            qp.drawLine(c, nose)
+            self._paint_label(qp, c, r, rob.name + (" (stale)" if rob.stale else ""), colour.darker(120))
 
     def _paint_scale(self, qp: QPainter) -> None:
         px = self.metres_to_pixels(1.0)

@@ -19,7 +19,7 @@ from chefbot_gui.map_view import Marker
 from chefbot_gui.presenter import DeliveryPresenter, OrderMode, Outcome, Phase, Pose, ViewState, fmt_eta, fmt_metres
 
 TICK_MS = 200  # presenter clock: wait countdown, connection time-out, stale diagnostics
-_STATUS_COLOURS = {
+STATUS_COLOURS = {  # status-line backgrounds by tone (the fleet window uses them too)
     "bad": "#ffcdd2",
     "busy": "#bbdefb",
     "good": "#c8e6c9",
@@ -28,17 +28,17 @@ _STATUS_COLOURS = {
 }
 
 
-def ui_path() -> Path:
-    """The Designer file: the source tree's ``ui/`` (devel space) or the installed share dir."""
+def ui_path(name: str = "robot_gui.ui") -> Path:
+    """The Designer file ``name``: the source tree's ``ui/`` (devel space) or the installed share dir."""
     here = Path(__file__).resolve()
-    source = here.parents[2] / "ui" / "robot_gui.ui"
+    source = here.parents[2] / "ui" / name
     if source.exists():
         return source
     try:
         import rospkg  # only to find the installed share directory
-        return Path(rospkg.RosPack().get_path("chefbot_gui")) / "ui" / "robot_gui.ui"
+        return Path(rospkg.RosPack().get_path("chefbot_gui")) / "ui" / name
     except Exception as e:  # rospkg raises several types; all mean "not found"
-        raise FileNotFoundError(f"robot_gui.ui not found next to {here} nor via rospkg: {e}") from e
+        raise FileNotFoundError(f"{name} not found next to {here} nor via rospkg: {e}") from e
 
 
 class RobotGuiWindow(QWidget):
@@ -167,7 +167,7 @@ class RobotGuiWindow(QWidget):
         self._rendering = True
         try:
             self.statusLabel.setText(st.status)
-            self.statusLabel.setStyleSheet(f"{self._status_style} background: {_STATUS_COLOURS[self._tone(st)]};")
+            self.statusLabel.setStyleSheet(f"{self._status_style} background: {STATUS_COLOURS[self._tone(st)]};")
             self.hintLabel.setText(st.hint)
             self.goButton.setEnabled(st.go_enabled)
             self.homeButton.setEnabled(st.home_enabled)
