@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""`make demo ROBOTS=N`: a stream of orders served by several ChefBots in one simulated restaurant (headless).
+"""`make demo ROBOTS=N`: a stream of orders served by several ChefBots in one simulated restaurant.
 
 Starts a private ROS master, ``chefbot_sim fleet_world.launch robots:=N`` (one pybullet world holding
 the site fleet file's first N robots, each with its own amcl and move_base under ``/chefbotK``) and
@@ -10,7 +10,9 @@ tables, Poisson arrivals every ``ORDER_EVERY`` s of sim time on average.  The di
 onto trips (up to 3 orders loaded at the kitchen per trip) and drives the robots.  One line per order
 when it ends (tables, robot, wait from the order to the robot at its last table, the robot's
 ground-truth distance to that table), then the throughput summary: orders per hour, median and
-95th-percentile wait, makespan, bumper contacts, robots back at their parking poses.
+95th-percentile wait, makespan, bumper contacts, robots back at their parking poses.  With a display
+(or CHEFBOT_DEMO_GUI=1; CHEFBOT_DEMO_GUI=0: never) the fleet window (``chefbot_gui fleet_gui.launch``)
+shows the robots on the map and the queue while the stream runs.
 
 An order counts as delivered when the dispatcher reports it served and the simulator's ground truth
 puts its robot within 0.05 m of one of the order's tables at that moment.  Exit code 0 only when every
@@ -284,6 +286,14 @@ def main() -> int:
     dispatcher_cmd = ["roslaunch", "--wait", "chefbot_fleet", "dispatcher.launch", f"robots:={' '.join(names)}",
                       f"fleet_file:={Path(files['fleet']).resolve()}",
                       f"tables_file:={Path(files['tables']).resolve()}", f"database:={database}"]
+    from demo import gui_mode  # the same rule as `make demo`: a display, or GUI=1
+    gui = gui_mode()
+    gui_cmd = ["roslaunch", "--wait", "chefbot_gui", "fleet_gui.launch",
+               f"fleet_file:={Path(files['fleet']).resolve()}", f"tables_file:={Path(files['tables']).resolve()}",
+               "required:=false"]
+    if gui:
+        say(f"the fleet window shows the robots and the queue (log: {(LOG_DIR / 'fleet_gui.log').relative_to(ROOT)}); "
+            "staff's orders placed in it are served too, but only the stream's are judged")
     say(f"starting {len(robots)} robots in one simulated {Path(files['world']).stem} ({cfg['drive']} drive; "
         f"master {uri}, real-time factor {cfg['rtf']}) and the dispatcher; log: {log.relative_to(ROOT)}")
     say(f"the order stream: {len(cfg['stream'])} orders of one or two tables over {cfg['stream'][-1][0]:.0f} s "
@@ -300,7 +310,8 @@ def main() -> int:
                 return 1
             time.sleep(0.1)
         # the dispatcher only now: a node reads /use_sim_time once, at start (before it, wall time)
-        with ProcessGroup(dispatcher_cmd, env=env, log=LOG_DIR / "dispatcher.log"):
+        with ProcessGroup(dispatcher_cmd, env=env, log=LOG_DIR / "dispatcher.log"), \
+                ProcessGroup(gui_cmd if gui else ["true"], env=env, log=LOG_DIR / "fleet_gui.log"):
             code = run_stream(cfg, robots, names, launch, log)
     return code
 
