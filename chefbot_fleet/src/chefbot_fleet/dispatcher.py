@@ -24,6 +24,12 @@ A robot's trip, leg by leg::
   made again.  A paused robot takes orders again after ``resume``; an offline one as soon as it
   reports again; one in fault after ``resume``, or by itself ``recover_s`` later when it reaches its
   parking pose (a passing cause: another robot in the way, a localization upset).
+* **Lost** (:meth:`Dispatcher.localization`, when the robot's localization reports its health): a
+  robot whose localization has said it is not sure where the robot is (not localized, a poor fit,
+  no scans) for ``lost_s`` is ``lost``: stopped, its unserved orders planned onto the others as for
+  a fault.  It is not sent anywhere while lost (and a robot in fault is not sent to its parking pose
+  while its localization is in doubt); once its localization is sure again (amcl recovered by
+  itself, or staff gave it its pose) it drives to its parking pose and is back in service.
 * **charge**: the robot finishes the trip it is on, gives back its waiting trips, drives to its
   charger and stays there (``charging``) until ``resume``.
 * **Batteries** (:meth:`Dispatcher.battery`, when the robot reports one): below ``low_battery`` a robot
@@ -57,7 +63,7 @@ from chefbot_fleet.order_store import FINAL, OrderStore, StoredOrder
 from chefbot_fleet.travel import Places
 
 POLICIES = {"insertion": Planner, "nearest_idle": NearestIdle}
-OUT_OF_SERVICE = ("paused", "fault", "offline", "to_charger", "charging")
+OUT_OF_SERVICE = ("paused", "fault", "offline", "lost", "to_charger", "charging")
 MOVED_M = 0.10          # m: a driving robot that moved less than this in stall_s is stalled
 PARKED_M = 0.25         # m: a robot this close to its parking pose is parked
 
@@ -92,6 +98,7 @@ class Config:
     recover_s: float = 60.0     # a robot in fault is sent to its parking pose after this long (0: only staff resume it)
     low_battery: float = 0.25   # state of charge (0..1) below which a robot goes to charge after its trip
     charged_battery: float = 0.9   # ... and at which it is back in service
+    lost_s: float = 15.0        # a robot whose localization is in doubt this long is lost (0: never)
     keep_final: int = 50        # final orders kept in the published queue
 
     def __post_init__(self) -> None:
@@ -104,8 +111,10 @@ class Config:
         if not 0.0 <= self.low_battery < self.charged_battery <= 1.0:
             raise ValueError(f"need 0 <= low_battery < charged_battery <= 1, got {self.low_battery}, "
                              f"{self.charged_battery}")
-        if not (math.isfinite(self.recover_s) and self.recover_s >= 0):
-            raise ValueError(f"recover_s must be a number >= 0, got {self.recover_s}")
+        for name in ("recover_s", "lost_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {v}")
         for name in ("retry_wait_s", "stale_s", "stall_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -138,11 +147,27 @@ class Robot:
     fault_since: float = 0.0     # when it went into fault
     battery: float = -1.0        # state of charge 0..1 (-1: not reported)
     for_battery: bool = False    # it went to charge because its battery was low (back by itself when charged)
+    doubt_since: float | None = None   # since when its localization has been in doubt (None: sure, or not reported)
+    doubt: str = ""              # what its localization says then
 
     @property
     def here(self) -> str:
         """The place name of its last reported pose."""
         return f"@{self.name}"
+
+
+LOCALIZATION_STATUS = ": localization"   # a localizer's diagnostics status name ends so ("/NAME/amcl: localization")
+
+
+def localization_report(statuses: list[tuple[str, int, str]]) -> tuple[bool, str] | None:
+    """A robot's localization health from its ``diagnostics`` statuses, as (name, level, message)
+    (``diagnostic_msgs/DiagnosticStatus`` levels: 0 OK, 1 WARN, 2 ERROR, 3 STALE): (sure, message) of
+    the first status named ``...: localization``, sure only when it is OK; None when there is none
+    (another node's diagnostics)."""
+    for name, level, message in statuses:
+        if name.endswith(LOCALIZATION_STATUS):
+            return level == 0, message
+    return None
 
 
 def parking_place(robot: str) -> str:
@@ -225,8 +250,10 @@ class Dispatcher:
             if r.state == "offline":
                 raise ValueError(f"{name} is offline (not heard from for {self.cfg.stale_s:g} s): it resumes "
                                  "by itself when it reports again")
-            if r.state not in ("paused", "fault", "charging", "to_charger"):
+            if r.state not in ("paused", "fault", "lost", "charging", "to_charger"):
                 return f"{name} is {r.state}: nothing to resume"
+            if r.state == "lost":        # staff vouch for its pose (e.g. gave it with RViz's 2D Pose Estimate)
+                r.doubt_since, r.doubt = None, ""
             self._home(r, now)        # from wherever it stopped (a new trip may come first)
             self._replan_waiting(now)
             return f"{name} takes orders again"
@@ -260,6 +287,22 @@ class Dispatcher:
                 return
             self.set_robot(name, "charge", now)
             r.for_battery, r.reason = True, f"{why}: charging after its trip"
+
+    def localization(self, name: str, sure: bool, message: str, now: float) -> None:
+        """Robot ``name``'s localization reported its health: ``sure`` of the pose, or not (``message``
+        says why: not localized, the scan does not fit the map, no scans)."""
+        r = self.robots.get(name)
+        if r is None:
+            return
+        if not sure:
+            if r.doubt_since is None:
+                r.doubt_since = now
+            r.doubt = message
+            return
+        r.doubt_since, r.doubt = None, ""
+        if r.state == "lost":
+            self._home(r, now)           # localized again: to its parking pose, and in service
+            self._replan_waiting(now)
 
     def heard(self, name: str, pose: Pose2D, now: float, waiting: bool = False) -> None:
         """Robot ``name`` reported its pose (``waiting``: its navigation says it waits on purpose, e.g.
@@ -318,13 +361,18 @@ class Dispatcher:
             if (r.state != "offline" or holds) and now - r.last_seen > self.cfg.stale_s:
                 self._out_of_service(r, "offline", f"{r.name} has not reported for {now - r.last_seen:.0f} s", now)
                 continue
+            if self.cfg.lost_s > 0 and r.doubt_since is not None and now - r.doubt_since >= self.cfg.lost_s \
+                    and r.state not in ("lost", "offline", "paused", "charging"):
+                self._out_of_service(r, "lost", f"{r.name} is lost for {now - r.doubt_since:.0f} s: {r.doubt}", now)
+                continue
             if r.leg and r.state in ("to_kitchen", "delivering", "parking", "to_charger") \
                     and now - r.moved_at > self.cfg.stall_s:
                 self._commands.append(Stop(r.name))
                 r.leg = 0
                 self._leg_failed(r, f"has not moved for {now - r.moved_at:.0f} s", now)
                 continue
-            if r.state == "fault" and self.cfg.recover_s > 0 and now - r.fault_since >= self.cfg.recover_s:
+            if r.state == "fault" and self.cfg.recover_s > 0 and now - r.fault_since >= self.cfg.recover_s \
+                    and r.doubt_since is None:
                 # a leg that failed for a passing reason (another robot in the way, a localization upset)
                 # should not keep the robot out for good: if it reaches its parking pose it is back in service
                 self._send(r, "parking", r.parking, now)

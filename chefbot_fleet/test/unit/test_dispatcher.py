@@ -9,7 +9,15 @@ import math
 import pytest
 
 from chefbot_common.geometry import Pose2D
-from chefbot_fleet.dispatcher import Config, Dispatcher, Goto, Stop, charger_place, parking_place
+from chefbot_fleet.dispatcher import (
+    Config,
+    Dispatcher,
+    Goto,
+    Stop,
+    charger_place,
+    localization_report,
+    parking_place,
+)
 from chefbot_fleet.order_store import OrderStore
 from chefbot_fleet.travel import Places, straight_route
 
@@ -37,6 +45,7 @@ class World:
         self.goal: dict[str, tuple[Pose2D, int] | None] = {r: None for r in robots}
         self.dead: set[str] = set()
         self.broken: set[str] = set()
+        self.doubt: dict[str, str] = {}                     # robot -> what its localization says when in doubt
         self.visits: list[tuple[str, str, float]] = []        # (robot, place, t) of every arrival
         self.log: list = []
 
@@ -63,6 +72,7 @@ class World:
                         f = step / d
                         self.pose[r] = Pose2D(p.x + f * (target.x - p.x), p.y + f * (target.y - p.y), target.yaw)
             self.disp.heard(r, self.pose[r], self.t)
+            self.disp.localization(r, r not in self.doubt, self.doubt.get(r, "localized"), self.t)
         self.disp.tick(self.t)
         for c in self.disp.commands():
             self.log.append((self.t, c))
@@ -403,3 +413,85 @@ def test_a_robot_without_a_charger_is_only_warned_about(tmp_path) -> None:
     assert disp.robots["r1"].state == "idle" and "no charger" in disp.robots["r1"].reason
     with pytest.raises(ValueError, match="no charger"):
         disp.set_robot("r1", "charge", 0.0)
+
+
+def test_a_robot_whose_localization_is_in_doubt_is_lost_stopped_and_back_once_localized(tmp_path) -> None:
+    disp, world = make(tmp_path, lost_s=10.0, recover_s=20.0)
+    world.run_until(lambda: all(r.state == "idle" for r in disp.robots.values()), 60)
+    ids = [disp.deliver(t, 1.0, "", world.t).id for t in (["t8", "t2"], ["t5", "t7"])]   # long trips
+    world.run_until(lambda: any(disp.store.get(i).state == "on_the_way" for i in ids))
+    carrier = next(disp.store.get(i).assigned for i in ids if disp.store.get(i).state == "on_the_way")
+    other = ({"r1", "r2"} - {carrier}).pop()
+    # a short doubt (a few poor scans) is not lost
+    world.doubt[carrier] = "estimate may be wrong: mean beam fit 0.41 < 0.5"
+    for _ in range(int(3.0 / world.dt)):
+        world.step()
+    del world.doubt[carrier]
+    world.step()
+    assert disp.robots[carrier].state not in ("lost", "fault")
+    # a lasting one is: stopped at once, its plates' orders planned onto the other
+    world.doubt[carrier] = "not localized: position spread 1.20 m > 0.5 m"
+    doubted = world.t
+    world.run_until(lambda: disp.robots[carrier].state == "lost", 30)
+    logged = len(world.log)
+    world.step()
+    assert world.t - doubted - world.dt == pytest.approx(10.0, abs=2 * world.dt)
+    assert "lost" in disp.robots[carrier].reason and "position spread" in disp.robots[carrier].reason
+    assert world.goal[carrier] is None                    # stopped (a Stop if it was driving)
+    assert not any(isinstance(c, Goto) and c.robot == carrier for _, c in world.log[logged:])
+    lost_at = len(world.log)
+    for _ in range(int(60.0 / world.dt)):          # longer than recover_s: a lost robot is sent nowhere
+        world.step()
+    assert disp.robots[carrier].state == "lost"
+    assert not any(isinstance(c, Goto) and c.robot == carrier for _, c in world.log[lost_at:])
+    world.run_until(lambda: all_final(disp))
+    who = served_once(disp)
+    requeued = [i for i in ids if any("is lost" in e.reason for e in disp.store.history(i))]
+    assert requeued and all(who[i] == other for i in requeued)
+    # localized again (amcl recovered, or staff gave it its pose): to its parking pose, in service
+    del world.doubt[carrier]
+    world.run_until(lambda: disp.robots[carrier].state == "idle", 60)
+    assert world.pose[carrier].distance(disp.places.pose(parking_place(carrier))) < 1e-6
+    disp.set_robot(other, "pause", world.t)
+    late = disp.deliver(["t4"], 1.0, "", world.t).id
+    world.run_until(lambda: all_final(disp))
+    assert disp.store.get(late).assigned == carrier
+
+
+def test_a_robot_in_fault_is_not_sent_to_park_while_its_localization_is_in_doubt(tmp_path) -> None:
+    disp, world = make(tmp_path, robots=["r1"], retries=0, recover_s=10.0, lost_s=0.0)   # lost_s 0: never lost
+    world.run_until(lambda: disp.robots["r1"].state == "idle", 60)
+    disp.deliver(["t8"], 1.0, "", world.t)
+    world.broken.add("r1")
+    world.run_until(lambda: disp.robots["r1"].state == "fault", 60)
+    world.broken.clear()
+    world.doubt["r1"] = "no scan for 3.0 s"
+    for _ in range(int(40.0 / world.dt)):
+        world.step()
+    assert disp.robots["r1"].state == "fault"             # never lost (lost_s 0), but not driven either
+    del world.doubt["r1"]
+    world.run_until(lambda: all_final(disp), 600)
+
+
+def test_staff_may_resume_a_lost_robot_and_a_paused_one_is_not_made_lost(tmp_path) -> None:
+    disp, world = make(tmp_path, robots=["r1", "r2"], lost_s=5.0)
+    world.run_until(lambda: all(r.state == "idle" for r in disp.robots.values()), 60)
+    disp.set_robot("r2", "pause", world.t)
+    world.doubt["r1"] = world.doubt["r2"] = "not localized"
+    world.run_until(lambda: disp.robots["r1"].state == "lost", 30)
+    assert disp.robots["r2"].state == "paused"
+    del world.doubt["r1"]
+    disp.robots["r1"].doubt_since = None
+    assert "takes orders again" in disp.set_robot("r1", "resume", world.t)
+    assert disp.robots["r1"].state in ("idle", "parking")
+
+
+def test_localization_report_reads_the_localizers_status() -> None:
+    statuses = [("/chefbot1/move_base: controller", 0, "ok"),
+                ("/chefbot1/amcl: localization", 1, "not localized: position spread 0.9 m")]
+    assert localization_report(statuses) == (False, "not localized: position spread 0.9 m")
+    assert localization_report([("/chefbot1/amcl: localization", 0, "localized")]) == (True, "localized")
+    assert localization_report([("/chefbot1/amcl: localization", 3, "stale")])[0] is False
+    assert localization_report([("/chefbot1/move_base: controller", 2, "x")]) is None
+    with pytest.raises(ValueError, match="lost_s"):
+        Config(lost_s=-1.0)

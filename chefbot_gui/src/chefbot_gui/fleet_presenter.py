@@ -32,9 +32,9 @@ ROBOT_WORDS = {
     "idle": "idle", "to_kitchen": "to the kitchen", "loading": "loading at the kitchen",
     "delivering": "delivering", "serving": "serving", "parking": "parking",
     "to_charger": "to its charger", "charging": "charging", "paused": "paused",
-    "fault": "fault", "offline": "offline",
+    "fault": "fault", "offline": "offline", "lost": "lost (not sure where it is)",
 }
-OUT_OF_SERVICE = frozenset({"paused", "fault", "offline", "to_charger", "charging"})
+OUT_OF_SERVICE = frozenset({"paused", "fault", "offline", "lost", "to_charger", "charging"})
 ORDER_WORDS = {"queued": "queued", "assigned": "assigned", "loading": "loading", "on_the_way": "on the way",
                "served": "served", "cancelled": "cancelled", "failed": "failed"}
 COMMANDS = ("pause", "resume", "charge")
@@ -437,7 +437,7 @@ class FleetPresenter:
             text = ROBOT_WORDS.get(disp.state, disp.state or "?")
             # the dispatcher's own places ("parking:chefbot1", "charger:chefbot1") are in the state word
             own = disp.place.partition(":")[0] in ("parking", "charger")
-            if disp.place and not own and disp.state not in ("idle", "paused", "fault", "offline"):
+            if disp.place and not own and disp.state not in ("idle", "paused", "fault", "offline", "lost"):
                 text += f" — {self.label(disp.place)}"
             if disp.reason:
                 text += f" ({disp.reason})"
