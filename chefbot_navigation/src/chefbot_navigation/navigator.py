@@ -519,6 +519,8 @@ class Navigator:
         timeout = t - rs["t0"] > 3.0 * distance / RETREAT_SPEED + 2.0
         if rs["moved"] >= distance or timeout or not self.trail or \
                 pose.distance(self.trail[-1]) < 0.5 * TRAIL_SPACING:
+            rs["ended"] = (f"{rs['moved']:.2f} m reversed" if rs["moved"] >= distance else
+                           f"not done in {t - rs['t0']:.0f} s" if timeout else "at the end of its trail")
             return 0.0, 0.0, True
         target = self.trail[-1]
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
@@ -541,6 +543,7 @@ class Navigator:
         arc = getattr(self.controller, "arc_collides", None)
         blocked = arc(pose, v, w, local) if arc is not None else _arc_blocked(local, pose, v, RETREAT_LOOKAHEAD)
         if blocked:     # something came behind the robot (a guest, another robot): stop retreating
+            rs["ended"] = f"something behind it after {rs['moved']:.2f} m"
             return 0.0, 0.0, True
         return v, w, False
 
@@ -552,6 +555,10 @@ class Navigator:
         check = getattr(self.controller, "rotation_collides", None)
         if self.recovery != "escape" or check is None or t - rs.setdefault("turn_t0", t) > ESCAPE_TURN_S \
                 or check(pose, err, local)[0]:
+            rs["ended"] = (f"its trail {abs(math.degrees(err)):.0f} deg off its back" +
+                           ("" if self.recovery != "escape" or check is None else
+                            f", turned for {ESCAPE_TURN_S:g} s" if t - rs["turn_t0"] > ESCAPE_TURN_S else
+                            ", no room to turn back"))
             return 0.0, 0.0, True
         speed = min(self.p.rotate_speed, max(self.cp.min_in_place_vel_theta, self.cp.rotation_gain * abs(err)))
         return 0.0, math.copysign(speed, err), False
@@ -600,6 +607,8 @@ class Navigator:
             done = moved >= self.p.back_off_distance or blocked or timeout
             v = 0.0 if done else -self.p.back_off_speed
         if done:
+            if rs.get("ended") and self.recovery in ("escape", "retreat"):   # why it stopped, for the log
+                self._say(f"recovering: {self.recovery} ended ({rs['ended']})")
             self.recovery = None
             self.state = "planning"
             self.need_plan = True

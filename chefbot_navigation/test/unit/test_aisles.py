@@ -124,8 +124,12 @@ def test_an_escape_stopped_askew_turns_back_before_it_reverses(urdf: str) -> Non
     assert not done and v < 0.0                          # back to the trail: reversing along it
     nav._start_retreat(0.0, askew, "test", "retreat")
     assert nav._retreat_command(0.1, askew, 3.0)[2]       # giving way: no turning
+    assert "off its back" in nav.recovery_state["ended"]  # and why it ended, for the log
     nav._start_retreat(0.0, askew, "test", "escape")
     assert nav._retreat_command(0.1 + 100.0, askew, 3.0)[2]   # not for ever
+    assert "not done in" in nav.recovery_state["ended"]
+    res = nav._recover(100.2, askew)                       # an ended escape says why before it plans again
+    assert res.state == "planning" and any(e.startswith("recovering: escape ended (") for e in nav._events)
 
 
 def test_too_narrow_for_the_inscribed_circle_is_refused_at_once(urdf: str) -> None:
