@@ -25,7 +25,10 @@ CHEFBOT_DEMO_WORLD, CHEFBOT_DEMO_MAP (the world's raster: the fleet and tables f
 world frame), CHEFBOT_DEMO_TABLES_FILE, CHEFBOT_DEMO_TABLES (a comma-separated subset), CHEFBOT_DEMO_DRIVE
 (plugin, the default here, or firmware), CHEFBOT_DEMO_USE_IMU (1, the default: odometry heading from the
 IMU, as in `make demo`; 0: the wheels'), CHEFBOT_DEMO_RTF (default 1.0), CHEFBOT_DEMO_ORDERS,
-CHEFBOT_DEMO_ORDER_EVERY (s, default 20), CHEFBOT_DEMO_SEED (default 0).
+CHEFBOT_DEMO_ORDER_EVERY (s, default 20), CHEFBOT_DEMO_SEED (default 0), CHEFBOT_DEMO_POLICY (the
+dispatcher's: insertion, the default, or nearest_idle, the baseline), CHEFBOT_DEMO_DIR (results and
+logs; default build/demo).  Run directly (``python tools/fleet_demo.py``) it also takes ROBOTS=1: the
+one-robot reference of chefbot_fleet's bench_fleet_stream (``make demo ROBOTS=1`` is the plain demo).
 """
 from __future__ import annotations
 
@@ -41,10 +44,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import ProcessGroup, free_port
+from procs import ProcessGroup, free_port, stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
-LOG_DIR = ROOT / "build" / "demo"
+LOG_DIR = Path(os.environ.get("CHEFBOT_DEMO_DIR", "") or ROOT / "build" / "demo")
 MAPS = ROOT / "chefbot_navigation" / "maps"
 XY_TOL = 0.05                         # m: the serving robot against the table pose, ground truth
 PARK_TOL = 0.10                       # m: back at the parking pose
@@ -88,6 +91,7 @@ def summarise(orders: list[dict], robots: int) -> dict:
         else (lambda q: float("nan"))
     return {"robots": robots, "orders": len(orders), "delivered": len(done), "makespan_s": makespan,
             "orders_per_hour": len(done) / makespan * 3600.0 if makespan > 0 else 0.0,
+            "wait_mean_s": float(np.mean(waits)) if waits else float("nan"),
             "wait_median_s": float(np.median(waits)) if waits else float("nan"), "wait_p95_s": pct(95)}
 
 
@@ -109,6 +113,8 @@ def settings() -> dict:
         n = int(os.environ.get("CHEFBOT_DEMO_ROBOTS", "2"))
     except ValueError:
         raise FleetDemoError(f"ROBOTS must be a whole number, got {os.environ['CHEFBOT_DEMO_ROBOTS']!r}") from None
+    if n < 1:
+        raise FleetDemoError(f"ROBOTS={n}: the fleet demo needs 1 or more robots")
     world = os.environ.get("CHEFBOT_DEMO_WORLD", "")
     fleet_file = os.environ.get("CHEFBOT_DEMO_FLEET_FILE", "")
     if world and not fleet_file:
@@ -132,12 +138,13 @@ def settings() -> dict:
         names = table_names(tables, files["tables"])      # the destinations, or CHEFBOT_DEMO_TABLES
     except (FleetFileError, TablesError, DemoInputError) as exc:
         raise FleetDemoError(str(exc)) from None
-    if n < 2:
-        raise FleetDemoError(f"ROBOTS={n}: the fleet demo needs 2 or more robots (one robot: make demo)")
+    policy = os.environ.get("CHEFBOT_DEMO_POLICY", "insertion")
+    if policy not in ("insertion", "nearest_idle"):
+        raise FleetDemoError(f"POLICY must be insertion or nearest_idle, got {policy!r}")
     count = number("CHEFBOT_DEMO_ORDERS", str(len(names)))
     every = number("CHEFBOT_DEMO_ORDER_EVERY", "20", float)
     stream = order_stream(names, count, every, number("CHEFBOT_DEMO_SEED", "0"))
-    return {"files": files, "robots": robots, "tables": tables, "stream": stream, "drive": drive,
+    return {"files": files, "robots": robots, "tables": tables, "stream": stream, "drive": drive, "policy": policy,
             "rtf": os.environ.get("CHEFBOT_DEMO_RTF", "1.0"),
             "use_imu": os.environ.get("CHEFBOT_DEMO_USE_IMU", "true") not in ("0", "false", "")}
 
@@ -154,7 +161,9 @@ class Watch:
 
         self.tables, self.lock = tables, threading.Lock()
         self.truth: dict[str, tuple[float, float]] = {}
+        self.metres = {n: 0.0 for n in names}           # ground-truth distance driven
         self.bumps = {n: 0 for n in names}
+        self.states: dict[str, list[str]] = {}          # order id -> its states in the order published
         self.queue = None
         self.served_at: dict[str, float] = {}          # order id -> robot's distance to its nearest table
         for n in names:
@@ -164,7 +173,10 @@ class Watch:
 
     def _on_truth(self, m, name: str) -> None:
         with self.lock:
-            self.truth[name] = (m.pose.pose.position.x, m.pose.pose.position.y)
+            here = (m.pose.pose.position.x, m.pose.pose.position.y)
+            if name in self.truth:
+                self.metres[name] += math.dist(self.truth[name], here)
+            self.truth[name] = here
 
     def _on_bumper(self, m, name: str) -> None:
         if m.data:
@@ -175,6 +187,9 @@ class Watch:
         with self.lock:
             self.queue = m
             for o in m.orders:
+                seen = self.states.setdefault(o.id, [])
+                if not seen or seen[-1] != o.state:
+                    seen.append(o.state)
                 if o.state == "served" and o.id not in self.served_at and o.assigned in self.truth:
                     x, y = self.truth[o.assigned]
                     self.served_at[o.id] = min(math.hypot(x - self.tables[t].x, y - self.tables[t].y)
@@ -285,7 +300,8 @@ def main() -> int:
                   f"use_imu:={str(cfg['use_imu']).lower()}"]
     dispatcher_cmd = ["roslaunch", "--wait", "chefbot_fleet", "dispatcher.launch", f"robots:={' '.join(names)}",
                       f"fleet_file:={Path(files['fleet']).resolve()}",
-                      f"tables_file:={Path(files['tables']).resolve()}", f"database:={database}"]
+                      f"tables_file:={Path(files['tables']).resolve()}", f"database:={database}",
+                      f"policy:={cfg['policy']}"]
     from demo import gui_mode  # the same rule as `make demo`: a display, or GUI=1
     gui = gui_mode()
     gui_cmd = ["roslaunch", "--wait", "chefbot_gui", "fleet_gui.launch",
@@ -340,18 +356,27 @@ def run_stream(cfg: dict, robots: list, names: list[str], launch, log: Path) -> 
     wall_s = time.monotonic() - t0_wall
     rospy.signal_shutdown("demo done")
     figures = summarise(results, len(robots))
-    bumps = sum(watch.bumps.values())
+    with watch.lock:
+        bumps = sum(watch.bumps.values())
     out = LOG_DIR / "fleet.json"
+    with watch.lock:
+        served_twice = sorted(i for i, seen in watch.states.items() if seen.count("served") > 1)
+        metres = dict(watch.metres)
+    lost = [o["id"] for o in results if o["state"] in ("unfinished", "not placed")]
+    figures.update(km=sum(metres.values()) / 1000.0, served_twice=len(served_twice), lost=len(lost),
+                   contacts=bumps, policy=cfg["policy"], sim_per_wall=figures["makespan_s"] / max(wall_s, 1e-9))
     out.write_text(json.dumps({"real_time_factor": cfg["rtf"], "wall_seconds": wall_s, "summary": figures,
-                               "bumper_contacts": watch.bumps, "parked": parked, "orders": results}, indent=2) + "\n")
+                               "bumper_contacts": watch.bumps, "metres": metres, "served_twice": served_twice,
+                               "lost": lost, "parked": parked, "orders": results}, indent=2) + "\n")
     say(f"results: {out.relative_to(ROOT)}")
     say(f"back at their parking poses: {parked}/{len(robots)}; bumper contacts: {bumps}")
     say(f"delivered {figures['delivered']}/{figures['orders']} orders with {len(robots)} robots in "
         f"{figures['makespan_s']:.1f} s (sim time; {wall_s:.1f} s wall): {figures['orders_per_hour']:.1f} orders/h, "
         f"wait median {figures['wait_median_s']:.1f} s, 95th percentile {figures['wait_p95_s']:.1f} s")
-    ok = figures["delivered"] == figures["orders"] and parked == len(robots) and bumps == 0
+    ok = figures["delivered"] == figures["orders"] and parked == len(robots) and bumps == 0 and not served_twice
     return 0 if ok else 1
 
 
 if __name__ == "__main__":
+    stop_on_sigterm()             # run directly (bench_fleet_stream): SIGTERM stops every group it started
     sys.exit(main())

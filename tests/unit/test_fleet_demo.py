@@ -11,7 +11,7 @@ from fleet_demo import FleetDemoError, order_stream, settings, summarise
 
 ENV = ("CHEFBOT_DEMO_WORLD", "CHEFBOT_DEMO_MAP", "CHEFBOT_DEMO_TABLES_FILE", "CHEFBOT_DEMO_FLEET_FILE",
        "CHEFBOT_DEMO_TABLES", "CHEFBOT_DEMO_DRIVE", "CHEFBOT_DEMO_ORDERS", "CHEFBOT_DEMO_ORDER_EVERY",
-       "CHEFBOT_DEMO_SEED")
+       "CHEFBOT_DEMO_SEED", "CHEFBOT_DEMO_POLICY")
 
 
 def test_the_order_stream_is_seeded_one_or_two_distinct_tables_poisson_gaps() -> None:
@@ -35,11 +35,13 @@ def test_the_figures_count_only_delivered_orders() -> None:
     assert f["makespan_s"] == pytest.approx(400.0)
     assert f["orders_per_hour"] == pytest.approx(2 / 400.0 * 3600.0)
     assert f["wait_median_s"] == pytest.approx(70.0) and f["wait_p95_s"] == pytest.approx(100.0)
+    assert f["wait_mean_s"] == pytest.approx(70.0)
 
 
 @pytest.mark.parametrize("env, match", [
     ({"CHEFBOT_DEMO_ROBOTS": "two"}, "whole number"),
-    ({"CHEFBOT_DEMO_ROBOTS": "1"}, "needs 2 or more"),
+    ({"CHEFBOT_DEMO_ROBOTS": "0"}, "needs 1 or more"),
+    ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_POLICY": "fastest"}, "insertion or nearest_idle"),
     ({"CHEFBOT_DEMO_ROBOTS": "4"}, "robots:=4 asked, but the file lists 3"),
     ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_WORLD": "chefbot_sim/worlds/cafe.yaml"}, "needs FLEET_FILE"),
     ({"CHEFBOT_DEMO_ROBOTS": "2", "CHEFBOT_DEMO_DRIVE": "magic"}, "plugin or firmware"),

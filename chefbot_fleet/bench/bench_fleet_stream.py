@@ -1,0 +1,128 @@
+"""The order queue with the whole stack: one seeded stream of orders served by 1, 2 and 3 simulated
+robots, by our planner and by the nearest-idle baseline (issue 33's figures).
+
+Each run is ``tools/fleet_demo.py`` (what ``make demo ROBOTS=N`` runs): the hotel in pybullet, every
+robot's amcl and move_base, the traffic rule and the dispatcher with the policy under test, the same
+seeded Poisson stream of ``CHEFBOT_STREAM_ORDERS`` orders (default 30; quick: 6) of one or two tables
+placed on ``/fleet/deliver`` at their sim times, one order per ``CHEFBOT_STREAM_EVERY`` s on average
+(default: a third of one robot's mean single-order trip over our planner's paths, about 25 s — the
+"3x that" stream of bench_dispatch, which one robot cannot keep up with).  Per run, from the
+simulator's ground truth (a test oracle): orders served (within 0.05 m of their table), orders per
+hour, the waits (order placed → robot standing at its last table: mean, median, 95th percentile),
+makespan, km driven, bumper contacts, orders lost (never final) or served twice, and sim seconds per
+wall second.  Goals: 3 robots ≥ 2.5× the throughput of one; our mean wait ≤ 0.8× the baseline's;
+0 contacts; 0 orders lost or duplicated.  Six runs of some 15–40 min of sim time each at real time:
+about 2–3 h (quick: two runs, about 10 min).  ``CHEFBOT_STREAM_SEED`` (default 0) picks the stream.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+POLICIES = ("insertion", "nearest_idle")
+BASELINE = "nearest idle, one order per trip"
+METRICS = (("orders per hour", "orders_per_hour"), ("wait s, mean", "wait_mean_s"),
+           ("wait s, median", "wait_median_s"), ("wait s, 95th percentile", "wait_p95_s"),
+           ("makespan s", "makespan_s"), ("km driven", "km"), ("sim s per wall s", "sim_per_wall"))
+RUN_TIMEOUT_S = 4 * 3600.0      # one run's wall-time bound (against hangs only)
+
+
+def stream_gap() -> float:
+    """A third of one robot's mean single-order trip (load, drive, serve, back) over our planner's hotel
+    paths: bench_dispatch's "3x that" stream."""
+    spec = importlib.util.spec_from_file_location("chefbot_bench_dispatch_site", Path(__file__).with_name(
+        "bench_dispatch.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    site, names = mod.hotel_site()
+    tables = [n for n in names if n != site.kitchen]
+    busy = statistics.mean(site.load_s + site.travel("home", t) + site.serve_s + site.travel(t, "home")
+                           for t in tables)
+    return busy / 3.0
+
+
+def run_stream(robots: int, policy: str, orders: int, every: float, seed: int) -> dict:
+    """One full-stack run of the stream; fleet_demo's summary (its fleet.json) plus ``exit``."""
+    with tempfile.TemporaryDirectory(prefix="bench_fleet_stream_") as tmp:
+        env = dict(os.environ, CHEFBOT_DEMO_ROBOTS=str(robots), CHEFBOT_DEMO_POLICY=policy,
+                   CHEFBOT_DEMO_ORDERS=str(orders), CHEFBOT_DEMO_ORDER_EVERY=f"{every:.3f}",
+                   CHEFBOT_DEMO_SEED=str(seed), CHEFBOT_DEMO_DIR=tmp, CHEFBOT_DEMO_GUI="0", CHEFBOT_DEMO_RTF="1.0")
+        proc = subprocess.Popen([sys.executable, str(ROOT / "tools" / "fleet_demo.py")], env=env,
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            out, _ = proc.communicate(timeout=RUN_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            proc.terminate()            # fleet_demo stops its process groups on SIGTERM
+            out, _ = proc.communicate()
+        code = proc.returncode
+        for line in out.splitlines():
+            if line.startswith("[demo] delivered") or "ERROR" in line:
+                print(f"[bench] fleet_stream {robots} robot(s), {policy}: {line[7:]}", flush=True)
+        path = Path(tmp) / "fleet.json"
+        if not path.is_file():
+            return {"exit": code, "orders": orders, "delivered": 0, "lost": orders, "served_twice": 0,
+                    "contacts": 0}
+        summary = json.loads(path.read_text())["summary"]
+    summary["exit"] = code
+    return summary
+
+
+def stream_rows(results: dict[tuple[int, str], dict], orders: int, every: float, seed: int) -> list[dict]:
+    """The bench's rows from each (robots, policy) run's summary (pure)."""
+    rows = []
+    for robots in sorted({r for r, _ in results}):
+        ours, base = results.get((robots, "insertion")), results.get((robots, "nearest_idle"))
+        if ours is None:
+            continue
+        case = (f"hotel, full stack, {orders} orders of 1-2 tables, one per {every:.0f} s (seed {seed}), "
+                f"{robots} robot{'s' if robots > 1 else ''}")
+        for name, key in METRICS:
+            mine = ours.get(key)
+            ref = base.get(key) if base else None
+            goal = met = None
+            if key == "wait_mean_s" and mine is not None and ref is not None:
+                goal, met = "<= 0.8x baseline", bool(mine <= 0.8 * ref)
+            rows.append({"bench": "fleet_stream", "case": case, "metric": name,
+                         "ours": None if mine is None else float(mine),
+                         "reference": None if ref is None else float(ref),
+                         "reference_name": BASELINE if ref is not None else None, "goal": goal, "met": met})
+        served = int(ours.get("delivered", 0))
+        rows.append({"bench": "fleet_stream", "case": case, "metric": "orders served at their tables",
+                     "ours": served, "reference": orders, "reference_name": "orders placed",
+                     "goal": f"{orders}/{orders}", "met": served == orders})
+        for name, key in (("bumper contacts", "contacts"), ("orders lost or served twice", None)):
+            runs = [r for r in (ours, base) if r is not None]
+            value = sum(int(r.get("lost", 0)) + int(r.get("served_twice", 0)) if key is None
+                        else int(r.get(key, 0)) for r in runs)
+            rows.append({"bench": "fleet_stream", "case": case + (", both policies" if base else ""),
+                         "metric": name, "ours": value, "reference": None, "reference_name": None, "goal": "0",
+                         "met": value == 0})
+    one, three = results.get((1, "insertion")), results.get((3, "insertion"))
+    if one and three and one.get("orders_per_hour") and three.get("orders_per_hour") is not None:
+        ratio = float(three["orders_per_hour"] / one["orders_per_hour"])
+        rows.append({"bench": "fleet_stream", "case": "hotel, full stack, throughput of 3 robots / 1 robot",
+                     "metric": "ratio", "ours": ratio, "reference": None, "reference_name": None,
+                     "goal": ">= 2.5", "met": ratio >= 2.5})
+    return rows
+
+
+def run(quick: bool = False) -> list[dict]:
+    orders = 6 if quick else int(os.environ.get("CHEFBOT_STREAM_ORDERS", "30"))
+    every = float(os.environ.get("CHEFBOT_STREAM_EVERY", "0") or 0) or stream_gap()
+    seed = int(os.environ.get("CHEFBOT_STREAM_SEED", "0"))
+    fleets = (1, 3) if quick else (1, 2, 3)
+    policies = ("insertion",) if quick else POLICIES
+    results = {(n, p): run_stream(n, p, orders, every, seed) for n in fleets for p in policies}
+    return stream_rows(results, orders, every, seed)
+
+
+if __name__ == "__main__":
+    for row in run(quick="--quick" in sys.argv):
+        print(row)

@@ -1,0 +1,50 @@
+"""bench_fleet_stream's rows from its runs' summaries (no simulation)."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+PATH = Path(__file__).resolve().parents[2] / "bench" / "bench_fleet_stream.py"
+spec = importlib.util.spec_from_file_location("chefbot_bench_fleet_stream", PATH)
+bench = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bench)
+
+
+def summary(per_hour: float, wait: float, **extra) -> dict:
+    base = {"orders": 6, "delivered": 6, "orders_per_hour": per_hour, "wait_mean_s": wait, "wait_median_s": wait,
+            "wait_p95_s": 2 * wait, "makespan_s": 600.0, "km": 1.2, "sim_per_wall": 0.8, "contacts": 0, "lost": 0,
+            "served_twice": 0}
+    return base | extra
+
+
+def by(rows: list[dict], case_part: str, metric: str) -> dict:
+    hits = [r for r in rows if case_part in r["case"] and r["metric"] == metric]
+    assert len(hits) == 1, (case_part, metric, hits)
+    return hits[0]
+
+
+def test_rows_compare_the_planner_with_the_baseline_and_3_robots_with_1() -> None:
+    results = {(1, "insertion"): summary(30.0, 300.0), (1, "nearest_idle"): summary(20.0, 500.0),
+               (3, "insertion"): summary(80.0, 100.0), (3, "nearest_idle"): summary(70.0, 110.0, contacts=1)}
+    rows = bench.stream_rows(results, 6, 25.0, 0)
+    one = by(rows, "1 robot", "wait s, mean")
+    assert one["ours"] == pytest.approx(300.0) and one["reference"] == pytest.approx(500.0) and one["met"] is True
+    three = by(rows, "3 robots", "wait s, mean")
+    assert three["met"] is False                            # 100 > 0.8 x 110
+    assert by(rows, "3 robots", "bumper contacts")["met"] is False      # the baseline's contact counts too
+    assert by(rows, "1 robot", "orders served at their tables")["met"] is True
+    ratio = by(rows, "3 robots / 1 robot", "ratio")
+    assert ratio["ours"] == pytest.approx(80.0 / 30.0) and ratio["met"] is True
+
+
+def test_a_failed_run_is_a_failed_row_not_a_crash() -> None:
+    results = {(1, "insertion"): summary(30.0, 300.0, delivered=4, lost=2),
+               (3, "insertion"): {"exit": 1, "orders": 6, "delivered": 0, "lost": 6, "served_twice": 0,
+                                  "contacts": 0}}
+    rows = bench.stream_rows(results, 6, 25.0, 0)
+    assert by(rows, "1 robot", "orders served at their tables")["met"] is False
+    assert by(rows, "1 robot", "orders lost or served twice")["ours"] == 2
+    assert by(rows, "3 robots", "orders per hour")["ours"] is None
+    assert not [r for r in rows if r["metric"] == "ratio"]            # no throughput of a failed run
