@@ -8,12 +8,15 @@ its own address, the way a restaurant's machines sit on its LAN:
 * ``world``: ``chefbot_sim fleet_sim.launch`` — the simulated restaurant standing in for the robots'
   hardware (/clock, each robot's sensors and wheels);
 * ``chefbot1``, ``chefbot2``: ``chefbot_sim fleet_robot.launch robot:=NAME`` — each robot's stack
-  (chefbot_fleet's ``robot.launch``), on its own "PC".
+  (chefbot_fleet's ``robot.launch``), on its own "PC";
+* and, on the server too, the staff's fleet window (``chefbot_gui fleet_gui.launch``, offscreen),
+  which places one order as soon as the dispatcher answers (its ``orders`` argument).
 
 Every host is set up as docs/real-robot.md tells a user to (``CHEFBOT_ROS_IP``, ``ROS_MASTER_URI``,
 ``source tools/env.sh``).  This node joins the server host itself.  Checked: every node of the
-graph runs on its own host and advertises that host's address (none on loopback), one order for each
-robot is served at its table through the dispatcher, with no contact.  Waits are bounded in wall time;
+graph runs on its own host and advertises that host's address (none on loopback); one order for each
+robot (on the action) and the window's order are served at their tables through the dispatcher, with
+no contact.  Waits are bounded in wall time;
 everything is judged on sim time.  Skipped, saying why, where network namespaces cannot be made
 (not root).
 """
@@ -40,11 +43,12 @@ PKG = "chefbot_tests"
 ROOT = Path(__file__).resolve().parents[2]
 ROBOTS = ("chefbot1", "chefbot2")
 ORDERS = {"chefbot1": "table_4", "chefbot2": "table_1"}   # one pinned order per robot
+GUI_ORDER = "table_7"             # the fleet window's order (any robot)
 PORT = 11311                      # the server's master: the default port, on the server host only
 WALL = 420.0                      # s: bound for the stacks to come up, and for the deliveries
 AT_TABLE = 0.15                   # m: the serving robot's ground truth within this of its table
 TABLES = ROOT / "chefbot_navigation" / "maps" / "hotel_world_tables.yaml"
-SERVER_NODES = ("/map_server", "/traffic", "/fleet/dispatcher")
+SERVER_NODES = ("/map_server", "/traffic", "/fleet/dispatcher", "/fleet_gui")
 WORLD_NODES = ("/chefbot_sim",)
 ROBOT_NODES = ("amcl", "move_base", "fleet_member", "robot_state_publisher", "depth_to_scan", "cliff_guard")
 
@@ -71,6 +75,8 @@ class FleetNetnsTest(unittest.TestCase):
             for robot in ROBOTS:
                 cls.start(robot, ["roslaunch", "--wait", "chefbot_sim", "fleet_robot.launch", f"robot:={robot}"],
                           master)
+            cls.start("server", ["roslaunch", "--wait", "chefbot_gui", "fleet_gui.launch", f"orders:={GUI_ORDER}"],
+                      master, label="gui", QT_QPA_PLATFORM="offscreen")
             # this process becomes a program on the server host, before rospy opens a socket
             cls.lan.enter("server")
             os.environ.update(ROS_MASTER_URI=master, ROS_IP=cls.lan.address("server"),
@@ -81,13 +87,15 @@ class FleetNetnsTest(unittest.TestCase):
             raise
 
     @classmethod
-    def start(cls, host: str, argv: list[str], master: str) -> None:
+    def start(cls, host: str, argv: list[str], master: str, label: str = "", **extra: str) -> None:
         """``argv`` on ``host``, in the environment a user sets up there (docs/real-robot.md): its
-        address in CHEFBOT_ROS_IP, the server's master, tools/env.sh; its own ROS log directory."""
+        address in CHEFBOT_ROS_IP, the server's master, tools/env.sh; its own ROS log directory.
+        ``label`` names the process when the host runs more than one."""
+        label = label or host
         env = dict(os.environ, CHEFBOT_ROS_IP=cls.lan.address(host), ROS_MASTER_URI=master,
-                   ROS_LOG_DIR=f"{cls.tmp.name}/{host}/log", ROS_HOME=f"{cls.tmp.name}/{host}")
-        log = open(f"{cls.tmp.name}/{host}.out", "wb")
-        cls.procs[host] = subprocess.Popen(
+                   ROS_LOG_DIR=f"{cls.tmp.name}/{host}/log", ROS_HOME=f"{cls.tmp.name}/{host}", **extra)
+        log = open(f"{cls.tmp.name}/{label}.out", "wb")
+        cls.procs[label] = subprocess.Popen(
             cls.lan.command(host, ["bash", str(ROOT / "tools" / "with_env.sh"), *argv]),
             env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         log.close()
@@ -127,8 +135,10 @@ class FleetNetnsTest(unittest.TestCase):
         cls.client = actionlib.ActionClient("/fleet/deliver", DeliverAction)
         cls.wait(lambda: cls.client.wait_for_server(rospy.Duration(0.1)) and not rospy.get_rostime().is_zero(),
                  "the dispatcher's deliver action and the world's /clock")
-        cls.wait(lambda: len(cls.robots()) == len(ROBOTS) and all(r.state == "idle" for r in cls.robots().values()),
-                 "both robots idle on /fleet/orders (their stacks report through the server)")
+        # in service (the window's order may already keep one busy)
+        cls.wait(lambda: len(cls.robots()) == len(ROBOTS) and all(r.state not in ("offline", "fault", "lost")
+                                                                  for r in cls.robots().values()),
+                 "both robots in service on /fleet/orders (their stacks report through the server)")
 
     @classmethod
     def wait(cls, cond, what: str, timeout: float = WALL) -> None:
@@ -218,6 +228,9 @@ class FleetNetnsTest(unittest.TestCase):
         ids = {r: h.get_goal_status_text().split()[-1] for r, h in handles.items()}
         served_at: dict[str, float] = {}
 
+        def window_order():
+            return next((o for o in self.orders().values() if list(o.tables) == [GUI_ORDER]), None)
+
         def done() -> bool:
             orders = self.orders()
             for r, i in ids.items():
@@ -226,9 +239,15 @@ class FleetNetnsTest(unittest.TestCase):
                     with self.lock:
                         x, y = self.truth[r]
                     served_at[r] = math.hypot(x - tables[ORDERS[r]].x, y - tables[ORDERS[r]].y)
-            return all(h.get_goal_status() in (GoalStatus.SUCCEEDED, GoalStatus.ABORTED, GoalStatus.REJECTED,
-                                               GoalStatus.PREEMPTED) for h in handles.values())
-        self.wait(done, "both orders final")
+            gui = window_order()
+            if gui is not None and gui.state == "served" and "gui" not in served_at:
+                with self.lock:
+                    x, y = self.truth[gui.assigned]
+                served_at["gui"] = math.hypot(x - tables[GUI_ORDER].x, y - tables[GUI_ORDER].y)
+            return gui is not None and gui.state in ("served", "cancelled", "failed") and all(
+                h.get_goal_status() in (GoalStatus.SUCCEEDED, GoalStatus.ABORTED, GoalStatus.REJECTED,
+                                        GoalStatus.PREEMPTED) for h in handles.values())
+        self.wait(done, "both orders and the window's final")
         for r, h in handles.items():
             result = h.get_result()
             self.assertEqual(h.get_goal_status(), GoalStatus.SUCCEEDED, f"{r}: {h.get_goal_status_text()}")
@@ -236,8 +255,12 @@ class FleetNetnsTest(unittest.TestCase):
             self.assertEqual(self.orders()[ids[r]].assigned, r)
             self.assertLess(served_at.get(r, math.inf), AT_TABLE, f"{r} called served {served_at.get(r)} m from "
                                                                   f"{ORDERS[r]}")
+        gui = window_order()
+        self.assertEqual(gui.state, "served", f"the window's order: {gui.state} ({gui.reason})")
+        self.assertLess(served_at.get("gui", math.inf), AT_TABLE, f"the window's order served "
+                                                                  f"{served_at.get('gui')} m from {GUI_ORDER}")
         self.assertEqual(self.contacts, {r: 0 for r in ROBOTS})
-        print(f"[figure] fleet_netns: both orders served in {rospy.get_time() - t0:.1f} s sim, "
+        print(f"[figure] fleet_netns: the three orders served in {rospy.get_time() - t0:.1f} s sim, "
               f"{max(served_at.values()):.3f} m from their tables at worst")
 
 
