@@ -31,7 +31,14 @@ def shipped_params() -> tuple[ControllerParams, CostmapParams]:
 class Run:
     """A navigator on a map driving a perfect unicycle; counts footprint contacts with the static map."""
 
-    def __init__(self, occ: OccupancyMap, urdf: str, start: Pose2D) -> None:
+    def __init__(self, occ: OccupancyMap, urdf: str, start: Pose2D,
+                 jitter: tuple[float, float, int] | None = None) -> None:
+        """``jitter`` (m, rad, seed): the navigator sees the pose through a localization error that wanders
+        (a random walk decaying by 0.98 a step, about these standard deviations, from zero at the start of
+        each leg), as amcl's estimate does; the robot moves, and touches, by its true pose."""
+        self.jitter = jitter
+        self.error = np.zeros(3)
+        self.rng = np.random.default_rng(jitter[2]) if jitter else None
         ctrl, cost = shipped_params()
         self.ctrl = ctrl
         self.fp = footprint_from_urdf(urdf, padding=cost.footprint_padding)
@@ -39,6 +46,16 @@ class Run:
         self.layers, self.nav = build_navigator(occ, NodeParams(), NavigatorParams(), ctrl, cost, PlannerParams(),
                                                 None, 0.0, self.fp)
         self.occ, self.pose, self.t = occ, start, 0.0
+
+    def seen(self) -> Pose2D:
+        """The pose the navigator is given: the true one, or with the wandering error of ``jitter``."""
+        if self.rng is None:
+            return self.pose
+        sxy, syaw, _ = self.jitter
+        # per 0.1 s step: the error's memory is about 5 s; 0.2 ~ sqrt(1 - 0.98^2) keeps it about (sxy, syaw)
+        self.error = 0.98 * self.error + self.rng.normal(0.0, [0.2 * sxy, 0.2 * sxy, 0.2 * syaw])
+        return Pose2D(self.pose.x + self.error[0], self.pose.y + self.error[1],
+                      wrap_angle(self.pose.yaw + self.error[2]))
 
     def touching(self) -> bool:
         c, s = math.cos(self.pose.yaw), math.sin(self.pose.yaw)
@@ -51,10 +68,11 @@ class Run:
         """Drive to ``goal``: (last StepResult, seconds, contact steps, status events, plan times, first plan);
         ``self.timeline`` holds (s since the goal, event)."""
         self.nav.set_goal(goal, self.t)
+        self.error = np.zeros(3)
         t0, touches, events, plans, first = self.t, 0, [], [], None
         self.timeline: list[tuple[float, str]] = []
         while self.t - t0 < t_max:
-            res = self.nav.step(self.t, self.pose)
+            res = self.nav.step(self.t, self.seen())
             events += res.events
             self.timeline += [(self.t - t0, e) for e in res.events]
             if res.new_plan is not None:

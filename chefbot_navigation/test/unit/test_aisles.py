@@ -179,3 +179,19 @@ def test_plan_keeps_to_the_middle_of_an_aisle(urdf: str) -> None:
     inside = plan.points[(plan.points[:, 0] > 2.55) & (plan.points[:, 0] < 3.45)]
     assert len(inside) > 10
     assert np.max(np.abs(inside[:, 1] - 1.5)) <= 0.03, inside[:, 1]
+
+
+def test_cafe_tour_with_a_wandering_estimate_never_gives_a_goal_up(urdf: str) -> None:
+    """Every cafe table in turn with the navigator seeing the pose through a wandering localization error
+    (about 3 cm and 0.04 rad, seeded): a turn on the spot is judged from where it started (the robot does not
+    move while it turns; the estimate does), so none is "blocked" part-way.  Judged from the estimate, the turn
+    round in table_s3's 0.50 m aisle for table_s4 stopped askew, both escapes ended at once ("its trail 107
+    deg off its back, no room to turn back") and the goal aborted "aisle narrower than the robot" -- the
+    cafe_aisles.test failure of CI, with this seed."""
+    tables = load_tables(PKG / "maps" / "cafe_tables.yaml")
+    home = tables["home"]
+    run = Run(load_map(PKG / "maps" / "cafe_map.yaml"), urdf, Pose2D(home.x, home.y, home.yaw), jitter=(0.03, 0.04, 3))
+    for name in [n for n in tables if n != "home"] + ["home"]:
+        tg = tables[name]
+        res, _, _, events, _, _ = run.go(Goal(tg.x, tg.y, tg.yaw), t_max=120.0)
+        assert res.outcome == "succeeded", f"{name}: {res.text}; {[e for e in events if 'escape' in e]}"
