@@ -54,17 +54,18 @@ def test_state_changes_are_recorded_once_each() -> None:
 
 
 def test_every_order_is_served_failed_with_a_reason_lost_or_duplicated() -> None:
-    placed = {"o1": 0.0, "o2": 1.0, "o3": 2.0, "o4": 3.0, "o5": 4.0, "o6": 5.0}
+    placed = {"o1": 0.0, "o2": 1.0, "o3": 2.0, "o4": 3.0, "o5": 4.0, "o6": 5.0, "o7": 6.0}
     h = {"o1": [("queued", "", 0.5), ("on_the_way", "", 10.0), ("served", "", 40.0)],
          "o2": [("assigned", "", 2.0), ("queued", "chefbot2 offline", 5.0),
                 ("failed", "no robot reaches table_9", 9.0)],
          "o3": [("assigned", "", 3.0), ("on_the_way", "", 20.0)],                            # never final: lost
          "o4": [("on_the_way", "", 4.0), ("served", "", 30.0), ("on_the_way", "", 31.0), ("served", "", 50.0)],
-         "o5": [("cancelled", "", 6.0)]}                                                      # no reason
+         "o5": [("cancelled", "", 6.0)],                                                      # no reason
+         "o7": [("cancelled", "guest left", 6.0), ("on_the_way", "", 8.0)]}                     # revived
     j = judge_orders(placed, h)
-    assert (j["placed"], j["served"], j["failed"], j["cancelled"]) == (6, 2, 1, 1)
-    assert j["lost"] == ["o3", "o6"] and j["duplicated"] == ["o4"] and j["no_reason"] == ["o5"]
-    assert j["reasons"] == {"no robot reaches table_9": 1} and j["final_s"]["o1"] == 40.0
+    assert (j["placed"], j["served"], j["failed"], j["cancelled"]) == (7, 2, 1, 2)
+    assert j["lost"] == ["o3", "o6"] and j["duplicated"] == ["o4", "o7"] and j["no_reason"] == ["o5"]
+    assert j["reasons"] == {"no robot reaches table_9": 1, "guest left": 1} and j["final_s"]["o1"] == 40.0
 
 
 def test_memory_growth_is_the_fitted_slope_per_hour_after_the_warm_up() -> None:
