@@ -521,6 +521,9 @@ class Soak:
         while not self.in_open_floor(name, keep_clear) and rospy.get_time() < limit:    # bounded: then anyway
             time.sleep(0.2)
         f["state_at_kill"] = self.robot_state(name)
+        with self.lock:
+            mine, truth = self.reported.get(name), self.watch.truth.get(name)
+        f["pose_error_at_kill_m"] = math.hypot(mine[0] - truth[0], mine[1] - truth[1]) if mine and truth else None
         t_kill = rospy.get_time()
         self.kills.append((self.sampler.now(), f"/{name}/"))
         self.fleet.kill_robot(name)
@@ -550,7 +553,8 @@ class Soak:
         f["pose_error_first_m"] = errors[0][1] if errors else None
         f["pose_error_max_m"] = max((e for _, e in errors), default=None)
         f["localized_s"] = errors[-1][0] if errors and errors[-1][1] < LOCALIZED_M else None
-        f["detail"] = (f"killed while {f['state_at_kill'] or '?'}; down {t_start - t_kill:.0f} s; own pose "
+        f["detail"] = (f"killed while {f['state_at_kill'] or '?'} (own pose {_f(f['pose_error_at_kill_m'], '.2f')} m "
+                       f"from the truth); down {t_start - t_kill:.0f} s; after the restart own pose "
                        f"{_f(f['pose_error_first_m'], '.2f')} m from the truth at first (at most "
                        f"{_f(f['pose_error_max_m'], '.2f')} m), within {LOCALIZED_M} m "
                        + (f"{f['localized_s']:.0f} s after its restart" if f["localized_s"] is not None
@@ -839,5 +843,6 @@ def judge(args, meta: dict, names: list[str], battery: dict, soak: Soak, sampler
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # Ctrl-C even when started in the background
     stop_on_sigterm()
     sys.exit(main())
