@@ -96,9 +96,11 @@ def fault_schedule(sim_s: float, names: list[str], seed: int) -> list[dict]:
 
 def sim_battery(hours: float) -> dict:
     """chefbot_sim_node battery params that make every robot go to charge within a run of ``hours``:
-    a pack of 2 Ah per hour of run (>= 0.2 Ah) starting half charged (at ~3 A a robot reaches the
-    dispatcher's 25 % after about a fifth of the run) and a 10 A charger (0.25 -> 0.9 in about a sixth)."""
-    return {"battery_capacity_ah": round(max(0.2, 2.0 * hours), 3), "battery_initial_soc": 0.5,
+    a pack of 2 Ah per hour of run, at least 1 Ah (the dispatcher's last 25 % must carry a robot through
+    the trip it is on: ~200 s at ~3.5 A is 0.2 Ah; a 0.3 Ah pack ran flat on the way), starting at 40 %
+    (at ~3 A a robot of a 2 h run reaches 25 % after a tenth of it) and a 10 A charger (25 -> 90 % in
+    about a sixth of a 2 h run)."""
+    return {"battery_capacity_ah": round(max(1.0, 2.0 * hours), 3), "battery_initial_soc": 0.4,
             "charge_current": 10.0}
 
 

@@ -37,11 +37,13 @@ def test_the_faults_are_two_kills_of_one_robot_and_one_of_the_dispatcher_at_fixe
 
 
 def test_the_batteries_scale_with_the_run_so_a_robot_charges_within_it() -> None:
-    for hours in (0.1, 2.0):
+    for hours in (0.5, 2.0, 8.0):
         b = sim_battery(hours)
         drain_h = (b["battery_initial_soc"] - 0.25) * b["battery_capacity_ah"] / 3.0      # ~3 A drawn
         charge_h = (0.9 - 0.25) * b["battery_capacity_ah"] / (b["charge_current"] - 2.5)
         assert drain_h + charge_h < 0.6 * hours, hours
+    for hours in (0.05, 0.15, 2.0):     # the last 25 % carries a robot through a trip (~200 s at 3.5 A)
+        assert 0.25 * sim_battery(hours)["battery_capacity_ah"] >= 200 * 3.5 / 3600, hours
 
 
 def test_state_changes_are_recorded_once_each() -> None:
