@@ -3,7 +3,7 @@
 SHELL := /bin/bash
 WITH_ENV := bash tools/with_env.sh
 
-.PHONY: setup test demo bench shell lint clean help
+.PHONY: setup test demo bench soak shell lint clean help
 
 help:
 	@echo "make demo   - install what is missing, build, run the simulated delivery demo (headless without a display)"
@@ -12,6 +12,8 @@ help:
 	@echo "make demo ROBOTS=3 - three robots in one simulated hotel deliver at once (FLEET_FILE= for another site)"
 	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
 	@echo "make bench  - benchmarks: figures side by side, JSON in bench-results/, report docs/benchmarks.md"
+	@echo "make soak [HOURS=2] [ROBOTS=3] [SEED=0] - the fleet soak: HOURS of sim time of orders, robot and dispatcher"
+	@echo "              kills, batteries; JSON in bench-results/soak-*.json, report docs/soak.md (runs >= 1 h or REPORT=1)"
 	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
 	@echo "make setup  - only install and build"
 	@echo "make lint   - ruff over the Python code"
@@ -36,6 +38,15 @@ demo: setup
 
 bench: setup
 	@$(WITH_ENV) python tools/bench.py
+
+# make soak [HOURS=2] [ROBOTS=3] [SEED=0] [REPORT=1]: the fleet soak test (tools/fleet_soak.py; not part of
+# make test nor make bench). HOURS of sim time, fractional for a short check (HOURS=0.15); REPORT=1 writes
+# docs/soak.md from a run under 1 h too
+HOURS ?= 2
+SEED ?= 0
+soak: setup
+	@$(WITH_ENV) python tools/fleet_soak.py --hours '$(HOURS)' --robots '$(or $(ROBOTS),3)' --seed '$(SEED)' \
+	  $(if $(filter 1,$(REPORT)),--report)
 
 lint: setup
 	@$(WITH_ENV) ruff check .

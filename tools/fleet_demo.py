@@ -95,12 +95,46 @@ def summarise(orders: list[dict], robots: int) -> dict:
             "wait_median_s": float(np.median(waits)) if waits else float("nan"), "wait_p95_s": pct(95)}
 
 
-def settings() -> dict:
-    """The demo's settings from the environment; FleetDemoError names a bad one."""
+def load_site(files: dict, n: int) -> tuple[list, dict, list[str]]:
+    """The site of a fleet run (shared with tools/fleet_soak.py): ``files`` (world, map, tables, fleet
+    paths) checked to exist, the fleet file's first ``n`` robots (n >= 1; the file must name a kitchen),
+    the tables and the destination table names (CHEFBOT_DEMO_TABLES, or every table).
+    FleetDemoError names what is wrong."""
     from demo import DemoInputError, table_names
 
     from chefbot_common.fleet_file import FleetFileError, load_fleet, load_kitchen, select
     from chefbot_common.tables import TablesError, load_tables
+
+    for key, path in files.items():
+        if not Path(path).is_file():
+            raise FleetDemoError(f"the {key} file {path} does not exist")
+    try:
+        robots = select(load_fleet(files["fleet"]), n, files["fleet"])
+        if load_kitchen(files["fleet"]) is None:
+            raise FleetDemoError(f"{files['fleet']} has no kitchen pose: the dispatcher's robots load there "
+                                 "(chefbot_fleet README, 'Fleet files')")
+        tables = load_tables(files["tables"])
+        names = table_names(tables, files["tables"])      # the destinations, or CHEFBOT_DEMO_TABLES
+    except (FleetFileError, TablesError, DemoInputError) as exc:
+        raise FleetDemoError(str(exc)) from None
+    if n < 1:
+        raise FleetDemoError(f"ROBOTS={n}: a fleet run needs 1 or more robots")
+    return robots, tables, names
+
+
+def site_files(world: str = "", fleet_file: str = "", map_file: str = "", tables_file: str = "") -> dict:
+    """The world, map, tables and fleet files of a fleet run: the hotel's unless given; a world needs its
+    fleet file (the robots' start poses in it)."""
+    if world and not fleet_file:
+        raise FleetDemoError("WORLD= with ROBOTS= needs FLEET_FILE= too (the robots' start poses in that world)")
+    return {"world": world or str(ROOT / "chefbot_sim" / "worlds" / "hotel.yaml"),
+            "map": map_file or str(MAPS / "hotel_world_map.yaml"),
+            "tables": tables_file or str(MAPS / "hotel_world_tables.yaml"),
+            "fleet": fleet_file or str(MAPS / "hotel_fleet.yaml")}
+
+
+def settings() -> dict:
+    """The demo's settings from the environment; FleetDemoError names a bad one."""
 
     def number(name: str, default: str, kind=int):
         raw = os.environ.get(name, default)
@@ -115,29 +149,12 @@ def settings() -> dict:
         raise FleetDemoError(f"ROBOTS must be a whole number, got {os.environ['CHEFBOT_DEMO_ROBOTS']!r}") from None
     if n < 1:
         raise FleetDemoError(f"ROBOTS={n}: the fleet demo needs 1 or more robots")
-    world = os.environ.get("CHEFBOT_DEMO_WORLD", "")
-    fleet_file = os.environ.get("CHEFBOT_DEMO_FLEET_FILE", "")
-    if world and not fleet_file:
-        raise FleetDemoError("WORLD= with ROBOTS= needs FLEET_FILE= too (the robots' start poses in that world)")
-    files = {"world": world or str(ROOT / "chefbot_sim" / "worlds" / "hotel.yaml"),
-             "map": os.environ.get("CHEFBOT_DEMO_MAP", "") or str(MAPS / "hotel_world_map.yaml"),
-             "tables": os.environ.get("CHEFBOT_DEMO_TABLES_FILE", "") or str(MAPS / "hotel_world_tables.yaml"),
-             "fleet": fleet_file or str(MAPS / "hotel_fleet.yaml")}
-    for key, path in files.items():
-        if not Path(path).is_file():
-            raise FleetDemoError(f"the {key} file {path} does not exist")
+    files = site_files(os.environ.get("CHEFBOT_DEMO_WORLD", ""), os.environ.get("CHEFBOT_DEMO_FLEET_FILE", ""),
+                       os.environ.get("CHEFBOT_DEMO_MAP", ""), os.environ.get("CHEFBOT_DEMO_TABLES_FILE", ""))
     drive = os.environ.get("CHEFBOT_DEMO_DRIVE", "plugin")
     if drive not in ("plugin", "firmware"):
         raise FleetDemoError(f"DRIVE must be plugin or firmware, got {drive!r}")
-    try:
-        robots = select(load_fleet(files["fleet"]), n, files["fleet"])
-        if load_kitchen(files["fleet"]) is None:
-            raise FleetDemoError(f"{files['fleet']} has no kitchen pose: the dispatcher's robots load there "
-                                 "(chefbot_fleet README, 'Fleet files')")
-        tables = load_tables(files["tables"])
-        names = table_names(tables, files["tables"])      # the destinations, or CHEFBOT_DEMO_TABLES
-    except (FleetFileError, TablesError, DemoInputError) as exc:
-        raise FleetDemoError(str(exc)) from None
+    robots, tables, names = load_site(files, n)
     policy = os.environ.get("CHEFBOT_DEMO_POLICY", "insertion")
     if policy not in ("insertion", "nearest_idle"):
         raise FleetDemoError(f"POLICY must be insertion or nearest_idle, got {policy!r}")
@@ -162,7 +179,9 @@ class Watch:
         self.tables, self.lock = tables, threading.Lock()
         self.truth: dict[str, tuple[float, float]] = {}
         self.metres = {n: 0.0 for n in names}           # ground-truth distance driven
-        self.bumps = {n: 0 for n in names}
+        self.bumps = {n: 0 for n in names}              # bumper messages reading pressed (20 Hz)
+        self.contacts = {n: 0 for n in names}           # presses (released -> pressed)
+        self._pressed = {n: False for n in names}
         self.states: dict[str, list[str]] = {}          # order id -> its states in the order published
         self.queue = None
         self.served_at: dict[str, float] = {}          # order id -> robot's distance to its nearest table
@@ -179,9 +198,11 @@ class Watch:
             self.truth[name] = here
 
     def _on_bumper(self, m, name: str) -> None:
-        if m.data:
-            with self.lock:
+        with self.lock:
+            if m.data:
                 self.bumps[name] += 1
+                self.contacts[name] += not self._pressed[name]
+            self._pressed[name] = bool(m.data)
 
     def _on_queue(self, m) -> None:
         with self.lock:

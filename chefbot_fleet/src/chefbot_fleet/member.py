@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from chefbot_common.fleet_file import FleetFileError, FleetRobot, load_fleet
+from chefbot_common.geometry import Pose2D
 from chefbot_navigation.robots_layer import from_nearest
 
 #: amcl's pose covariance is a row-major 6 x 6 (x, y, z, roll, pitch, yaw) matrix.
@@ -38,6 +39,26 @@ def initial_covariance(var_xy: float, var_yaw: float) -> list[float]:
     cov = [0.0] * 36
     cov[COV_X], cov[COV_Y], cov[COV_YAW] = float(var_xy), float(var_xy), float(var_yaw)
     return cov
+
+
+def saved_pose(value: object) -> Pose2D | None:
+    """The pose an earlier run of this robot's fleet_member left on the parameter server (``~last_pose``:
+    ``{x, y, yaw}`` in m and rad), or None when there is none or it is not such a mapping of finite
+    numbers (a fresh site start: the robot is on its fleet-file start pose)."""
+    if not isinstance(value, dict):
+        return None
+    try:
+        x, y, yaw = (float(value[k]) for k in ("x", "y", "yaw"))
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not all(np.isfinite((x, y, yaw))):
+        return None
+    return Pose2D(x, y, yaw)
+
+
+def pose_record(pose: Pose2D) -> dict:
+    """``pose`` as fleet_member stores it under ``~last_pose`` (what :func:`saved_pose` reads back)."""
+    return {"x": round(float(pose.x), 4), "y": round(float(pose.y), 4), "yaw": round(float(pose.yaw), 4)}
 
 
 #: actionlib GoalStatus values of a goal still in the works (PENDING, ACTIVE, PREEMPTING, RECALLING)

@@ -15,8 +15,10 @@ from chefbot_fleet.member import (
     COV_YAW,
     find_robot,
     initial_covariance,
+    pose_record,
     remaining_path,
     robot_name,
+    saved_pose,
     state_text,
 )
 
@@ -66,3 +68,12 @@ def test_state_text() -> None:
     assert state_text([3, 2], "chefbot2 holds aisle 1") == "idle"           # succeeded, preempted: done
     assert state_text([3, 1], "") == "driving"
     assert state_text([1], "chefbot2 holds aisle 1") == "waiting: chefbot2 holds aisle 1"
+
+
+def test_a_restarted_member_resumes_from_the_pose_it_saved_and_ignores_anything_else() -> None:
+    pose = Pose2D(1.23456, -2.5, 3.1)
+    back = saved_pose(pose_record(pose))
+    assert back is not None and abs(back.x - pose.x) < 1e-3 and back.y == -2.5 and back.yaw == 3.1
+    for bad in (None, "", {}, {"x": 1.0, "y": 2.0}, {"x": "a", "y": 0, "yaw": 0}, {"x": float("nan"), "y": 0, "yaw": 0},
+                [1.0, 2.0, 0.0]):
+        assert saved_pose(bad) is None, bad
