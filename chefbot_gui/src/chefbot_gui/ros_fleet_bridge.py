@@ -96,7 +96,7 @@ class FleetBridge(QObject):
         super().__init__(parent)
         self.p = params or FleetBridgeParams()
         self._client = actionlib.ActionClient(self.p.name("deliver"), DeliverAction)
-        self._goals: dict[int, actionlib.ClientGoalHandle] = {}
+        self._goals: dict[int, actionlib.ClientGoalHandle | None] = {}   # None: being sent
         self._accepted: set[int] = set()
         self._lock = threading.Lock()
         self._subs: list[rospy.Subscriber] = []
@@ -138,13 +138,20 @@ class FleetBridge(QObject):
         goal = DeliverGoal(tables=list(tables), priority=float(priority), robot=robot)
         rospy.loginfo("chefbot_gui: order request %d: %s priority %g robot %r", request, " ".join(tables),
                       priority, robot)
+        # in flight before send_goal returns: a quick answer (a refusal) may come back on
+        # rospy's thread before the handle does, and must not be taken for one already reported
+        with self._lock:
+            self._goals[request] = None
         try:
             gh = self._client.send_goal(goal, transition_cb=partial(self._on_transition, request))
         except rospy.ROSException as e:     # node shutting down
+            with self._lock:
+                self._goals.pop(request, None)
             self.orderDone.emit(request, "", "lost", str(e))
             return
         with self._lock:
-            self._goals[request] = gh
+            if request in self._goals:      # not answered yet: keep the handle (actionlib holds it weakly)
+                self._goals[request] = gh
 
     def cancel_order(self, request: int, order_id: str) -> None:
         """``cancel_order(order_id)`` in a thread of its own; the answer is replyReceived."""
@@ -184,8 +191,9 @@ class FleetBridge(QObject):
                 self.orderAccepted.emit(request, gh.get_goal_status_text() or "")
         elif comm == actionlib.CommState.DONE:
             with self._lock:
-                if self._goals.pop(request, None) is None:
+                if request not in self._goals:
                     return       # already reported (as lost)
+                del self._goals[request]
             state = gh.get_terminal_state()
             text = gh.get_goal_status_text() or ""
             if state == GoalStatus.REJECTED:

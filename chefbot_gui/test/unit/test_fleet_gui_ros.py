@@ -222,6 +222,32 @@ def test_add_order_click_sends_one_deliver_goal_and_shows_the_answers(qtbot, mak
     qtbot.waitUntil(lambda: w.replyLabel.text() == "order for Table 9: refused: unknown table 'table_9'", timeout=T)
 
 
+def test_an_answer_that_comes_before_send_goal_returns_is_not_lost(qtbot, make_fleet) -> None:
+    """The dispatcher refuses at once, on rospy's thread; the GUI thread may not have the goal's
+    handle back yet.  Made certain here: send_goal returns only after the answer is in."""
+    import actionlib
+
+    gui, dispatcher = make_fleet()
+    dispatcher(refuse=("table_9",))
+    w = gui.window
+    qtbot.waitUntil(lambda: status(w).startswith("fleet:"), timeout=T)
+    client = gui.bridge._client
+    send = client.send_goal
+
+    def send_then_wait_for_the_answer(*a, **kw):
+        gh = send(*a, **kw)
+        deadline = time.monotonic() + T / 1000
+        while gh.get_comm_state() != actionlib.CommState.DONE and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert gh.get_comm_state() == actionlib.CommState.DONE
+        return gh
+
+    client.send_goal = send_then_wait_for_the_answer
+    click_table(qtbot, w, "table_9")
+    qtbot.mouseClick(w.addOrderButton, Qt.LeftButton)
+    qtbot.waitUntil(lambda: w.replyLabel.text() == "order for Table 9: refused: unknown table 'table_9'", timeout=T)
+
+
 def test_cancel_and_robot_buttons_reach_the_services_without_freezing(qtbot, make_fleet) -> None:
     gui, dispatcher = make_fleet()
     d = dispatcher(service_delay_s=1.0)
