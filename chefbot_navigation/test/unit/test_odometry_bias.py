@@ -17,10 +17,10 @@ TURN = 1.02                      # and 2 % too much turn
 DRIFT = math.radians(1.5)        # and misses a left turn of 1.5 deg per metre (unequal wheels)
 
 
-def _biased(step: Pose2D) -> Pose2D:
+def _biased(step: Pose2D, turn: float = TURN, drift: float = DRIFT) -> Pose2D:
     """What such odometry reports for the true step ``step``."""
     d = math.hypot(step.x, step.y)
-    return Pose2D(step.x * SCALE, step.y * SCALE, (step.yaw - DRIFT * math.copysign(d, step.x)) * TURN)
+    return Pose2D(step.x * SCALE, step.y * SCALE, (step.yaw - drift * math.copysign(d, step.x)) * turn)
 
 
 # ---------------------------------------------------------------- the estimator alone
@@ -98,6 +98,62 @@ def test_turn_scale_is_learned_from_in_place_turns():
     for _ in range(60):                                # 12 rad
         bias.observe(Pose2D(0.0, 0.0, 0.2 * TURN), Pose2D(0.0, 0.0, 0.2), 0.5)
     assert bias.est.turn_scale == pytest.approx(1 / TURN, abs=1e-6)
+
+
+def _arcs(n: int, seed: int = 0, curvature: float | None = None) -> list[Pose2D]:
+    """True steps of a sparse log: 0.4-0.9 m each, every one an arc (left and right, 5-35 deg), or all
+    of one ``curvature`` (rad/m)."""
+    rng = np.random.default_rng(seed)
+    steps = []
+    for _ in range(n):
+        d = rng.uniform(0.4, 0.9)
+        yaw = d * curvature if curvature is not None else rng.choice([-1, 1]) * math.radians(rng.uniform(5, 35))
+        steps.append(Pose2D(d * math.cos(yaw / 2), d * math.sin(yaw / 2), yaw))
+    return steps
+
+
+def test_turn_scale_and_drift_are_learned_from_arcs_alone():
+    # a sparse log (one scan per ~0.7 m / ~20 deg) has no turn on the spot and no straight step to learn from
+    bias = OdometryBias(BiasLimits())
+    for truth in _arcs(80):
+        bias.observe(_biased(truth), truth, 0.01)
+    e = bias.est
+    assert e.turn_scale == pytest.approx(1 / TURN, abs=1e-6) and e.drift_per_m == pytest.approx(DRIFT / SCALE, abs=1e-6)
+    assert e.turn_seen > 6.0 and e.distance_scale == pytest.approx(1 / SCALE, abs=1e-6)
+    for truth in _arcs(5, seed=1):
+        assert bias.correct(_biased(truth)).yaw == pytest.approx(truth.yaw, abs=1e-6)
+
+
+def test_a_large_turn_error_of_a_sparse_log_is_learned():
+    # 8 % too much turn and 2.5 deg/m: ~1.8 deg per 0.7 m / 20 deg step, as the real log of issue 30
+    bias = OdometryBias(BiasLimits())
+    for truth in _arcs(120, seed=2):
+        bias.observe(_biased(truth, turn=1.08, drift=math.radians(2.5)), truth, 0.01)
+    assert bias.est.turn_scale == pytest.approx(1 / 1.08, abs=1e-6)
+    assert bias.est.drift_per_m == pytest.approx(math.radians(2.5) / SCALE, abs=1e-6)
+
+
+def test_arcs_of_one_curvature_are_still_corrected_right():
+    # only s_t * curvature + k is observable: no wild pair of values, and such steps come out right
+    bias = OdometryBias(BiasLimits())
+    for truth in _arcs(80, curvature=0.4):
+        bias.observe(_biased(truth), truth, 0.01)
+    assert bias.est.turn_scale == 1.0                   # no turn on the spot: nothing to tell them apart
+    assert abs(bias.est.drift_per_m) <= BiasLimits().drift_limit
+    for truth in _arcs(5, seed=3, curvature=0.4):
+        assert bias.correct(_biased(truth)).yaw == pytest.approx(truth.yaw, abs=1e-6)
+
+
+def test_turns_the_wheels_slipped_through_are_left_out():
+    # a careless drive: the odometry counts 8 deg of a corner for 1.5 deg turned
+    bias = OdometryBias(BiasLimits())
+    rng = np.random.default_rng(4)
+    for truth in _arcs(80):
+        bias.observe(_biased(truth), truth, 0.01)
+        if rng.random() < 0.3:
+            bias.observe(Pose2D(0.3, 0.0, math.radians(8)), Pose2D(0.3, 0.0, math.radians(1.5)), 0.01)
+    assert bias.est.turn_scale == pytest.approx(1 / TURN, abs=0.005)
+    assert bias.est.drift_per_m == pytest.approx(DRIFT / SCALE, abs=math.radians(0.2))
 
 
 def test_describe_tells_the_user_in_words():

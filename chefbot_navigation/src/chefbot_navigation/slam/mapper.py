@@ -4,8 +4,8 @@ Per scan (time in float s, odometry pose of the base in ``odom``):
 
 1. Predict the base pose in ``map`` from the last keyframe and the odometry
    delta since then, corrected by the odometry bias learned from matched
-   steps (distance scale, turn scale of in-place turns, heading drift per
-   metre: :mod:`odometry_bias`).
+   steps (distance scale, turn scale, heading drift per metre:
+   :mod:`odometry_bias`).
 2. Only when the robot moved ``linearUpdate`` m / turned ``angularUpdate`` rad
    since the last keyframe (or ``temporalUpdate`` s passed, if > 0) is the scan
    processed: matched (correlative + refinement, :mod:`scan_matcher`) against a
@@ -115,8 +115,8 @@ class SlamConfig:
     srt: float = 0.05                    # [m/rad] translation error per radian turned (>= 0)
     str: float = 0.1                     # [rad/m] rotation error per metre driven (>= 0)
     stt: float = 0.15                    # [rad/rad] rotation error per radian turned (wheel slip; >= 0)
-    turn_calibration: bool = True        # learn the odometry's turn scale from matched spins (wheel slip)
-    turn_calibration_min: float = 6.0    # rad of matched in-place turning before the learned scale is used
+    turn_calibration: bool = True        # learn the odometry's turn scale from matched turns (wheel slip, base)
+    turn_calibration_min: float = 6.0    # rad of matched turning before the learned scale is used
     turn_scale_limit: float = 0.15       # [fraction] the learned scale stays within 1 +- this (> 0)
     odometry_calibration: bool = True    # apply the distance scale and heading drift per metre learned from
     #                                      well-constrained matched steps (wheel radius, unequal wheels; always
@@ -473,7 +473,7 @@ class Slam:
 
     def _learn_bias(self, rel: Pose2D, matched: Pose2D, spread: float) -> None:
         """Feed a step between two matched keyframes to the odometry-bias estimate (:mod:`odometry_bias`:
-        distance scale, turn scale from in-place turns, heading drift per metre) and show it in the stats."""
+        distance scale, turn scale, heading drift per metre) and show it in the stats."""
         self.bias.observe(rel, matched, spread)
         e = self.bias.est
         self.stats.turn_scale, self.stats.distance_scale, self.stats.drift_per_m = \

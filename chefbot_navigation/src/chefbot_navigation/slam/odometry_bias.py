@@ -10,20 +10,30 @@ relate them:
   keyframe step of at least ``2 * delta`` whose match was well constrained
   (``spread`` ≤ ``calibration_max_spread``: a scan of a flat wall cannot say how far the robot
   went along it, and the matcher would just return the odometry's distance);
-* **turn scale** ``s_t``: matched / odometry turn over in-place turns (the
-  former ``turn_calibration``: < 2 cells of motion, a turn of at least
-  ``angularUpdate / 3``);
+* **turn scale** ``s_t``: matched / odometry turn over in-place turns (< 2
+  cells of motion, a turn of at least ``angularUpdate / 3``);
 * **heading drift** ``k`` rad per metre driven forward, as the odometry counts
   metres (unequal wheel radii turn the robot slowly while the odometry says it
   drives straight): the matched heading change minus ``s_t`` times the
-  odometry's, per metre, over steps that turned less than ``angularUpdate``.
+  odometry's, per metre, over steps that turned less than ``angularUpdate``;
+* **from arcs** when there are not enough turns on the spot (a sparse log, one
+  scan per 0.7 m / 25 deg, has almost none): every matched step's heading
+  change is ``s_t * y + k * f`` for its odometry turn ``y`` and signed
+  distance ``f``.  Two equations, one summed over the steps that turned
+  (weighted by the sign of their turn), one over the steps that drove
+  (weighted by the sign of their motion), give both at once, as long as the
+  arcs do not all have the same curvature (then only ``s_t`` times it plus
+  ``k`` is observable: the turn scale stays, the drift is learned given it).
+  The turns on the spot are preferred where there are enough: on our recorded
+  drives the arcs, whose turns the wheels slip through, taught a turn scale
+  a few per cent lower and a map up to 5 cm worse.
 
 Each is a ratio of sums over the accepted steps (consecutive steps' matching
 errors cancel in the sums: what is left is the error at the ends of the
 stretch), learned once enough motion has been seen (``turn_calibration_min``
 rad, ``odometry_calibration_min`` m) and clipped to the configured limits.  A
 step whose ratio is far from the current estimate (a slipped match, a wheel
-spinning against a chair) is left out.
+spinning against a chair, a turn the wheels slipped through) is left out.
 
 The distance scale and the drift are *applied* only once they leave a dead
 band (``distance_scale_deadband``, ``drift_deadband``) and from then on.  Scan
@@ -50,10 +60,17 @@ from dataclasses import dataclass
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 
-# a step whose implied scale or drift is this far off the current estimate is not used (a mis-match,
-# or the wheels turning while the robot is held): a real bias moves the ratio by a few per cent
+# a step whose implied scale or heading is this far off the current estimate is not used (a mis-match,
+# the wheels turning while the robot is held, a turn the wheels slipped through): a real bias moves the
+# ratios by a few per cent.  The heading's allowance: OUTLIER_HEADING + OUTLIER_TURN * |odometry turn| +
+# OUTLIER_DRIFT * distance, that last at most OUTLIER_DRIFT_STEP
 OUTLIER_SCALE = 0.25          # fraction
+OUTLIER_HEADING = 0.03        # rad
+OUTLIER_TURN = 0.2            # fraction of the odometry's turn
 OUTLIER_DRIFT = 0.35          # rad per metre
+OUTLIER_DRIFT_STEP = 0.05     # rad
+HEADING_SPREAD = 3.0          # a driving step teaches the heading if matched within this x calibration_max_spread
+MIN_CONDITION = 0.3           # the joint turn/drift solve needs det >= this x (sum |y|)(sum |f|) (1: independent)
 
 
 @dataclass
@@ -82,7 +99,7 @@ class BiasEstimate:
     turn_scale: float = 1.0             # true turn / odometry turn
     drift_per_m: float = 0.0            # rad the robot turns per odometry metre driven forward that odometry misses
     distance_seen: float = 0.0          # m of matched odometry steps used for the scale and the drift
-    turn_seen: float = 0.0              # rad of matched in-place turning used for the turn scale
+    turn_seen: float = 0.0              # rad of matched turning used for the turn scale
     distance_applied: bool = False      # the distance scale left its dead band: predictions use it
     drift_applied: bool = False         # the drift left its dead band: predictions use it
 
@@ -94,8 +111,11 @@ class OdometryBias:
         self.lim = limits
         self.est = BiasEstimate()
         self._turn = [0.0, 0.0]        # in-place turning: (odometry, matched) rad
-        self._dist = [0.0, 0.0]        # straight-ish driving: (odometry, matched along the odometry's direction) m
-        self._drift = [0.0, 0.0]       # (signed metres, unexplained heading change rad)
+        self._dist = [0.0, 0.0]        # driving: (odometry, matched along the odometry's direction) m
+        self._straight = [0.0, 0.0]    # straight-ish driving: (signed metres, heading change beyond s_t * y rad)
+        # the two equations  s * Y + k * F = B  of the turn scale s and the drift k (module docstring):
+        self._rows_t = [0.0, 0.0, 0.0]  # turning steps: sum |y|, sum sgn(y) f, sum sgn(y) dyaw
+        self._rows_f = [0.0, 0.0, 0.0]  # driving steps: sum sgn(f) y, sum |f|, sum sgn(f) dyaw
 
     def correct(self, rel: Pose2D) -> Pose2D:
         """The odometry step ``rel`` (in the frame of its start) corrected by the learned factors."""
@@ -109,40 +129,73 @@ class OdometryBias:
     def observe(self, rel: Pose2D, matched: Pose2D, spread: float) -> None:
         """One step between two matched keyframes: ``rel`` the raw odometry step, ``matched`` the matched
         one (both in the frame of the step's start), ``spread`` (m) of the second match."""
-        lim = self.lim
+        lim, e = self.lim, self.est
         d = math.hypot(rel.x, rel.y)
         dyaw = wrap_angle(matched.yaw)
-        if lim.turn_calibration and d <= 2 * lim.delta and abs(rel.yaw) >= lim.angularUpdate / 3 \
-                and dyaw * rel.yaw > 0:
+        forward = math.copysign(d, rel.x) if d > 0 else 0.0
+        turning = abs(rel.yaw) >= lim.angularUpdate / 3 and dyaw * rel.yaw > 0
+        driving = d >= 2 * lim.delta
+        if lim.turn_calibration and turning and d <= 2 * lim.delta:
             self._turn[0] += abs(rel.yaw)
             self._turn[1] += abs(dyaw)
-            self.est.turn_seen = self._turn[0]
-            if self._turn[0] >= lim.turn_calibration_min:
-                self.est.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
-        if d < 2 * lim.delta or spread > lim.calibration_max_spread:
+        # the heading: a wall seen at an angle fixes it even where the position along the wall is unsure
+        heading_ok = d <= 2 * lim.delta or spread <= HEADING_SPREAD * lim.calibration_max_spread
+        expected = rel.yaw * e.turn_scale + e.drift_per_m * forward
+        allowance = OUTLIER_HEADING + OUTLIER_TURN * abs(rel.yaw) + min(OUTLIER_DRIFT * d, OUTLIER_DRIFT_STEP)
+        if heading_ok and abs(dyaw - expected) <= allowance:
+            if turning:
+                sg = math.copysign(1.0, rel.yaw)
+                self._rows_t[0] += abs(rel.yaw)
+                self._rows_t[1] += sg * forward
+                self._rows_t[2] += sg * dyaw
+            if driving:
+                sg = math.copysign(1.0, forward)
+                self._rows_f[0] += sg * rel.yaw
+                self._rows_f[1] += abs(forward)
+                self._rows_f[2] += sg * dyaw
+                if abs(rel.yaw) < lim.angularUpdate and spread <= lim.calibration_max_spread:
+                    self._straight[0] += forward
+                    self._straight[1] += wrap_angle(dyaw - rel.yaw * e.turn_scale)
+        if driving and spread <= lim.calibration_max_spread:
+            along = (matched.x * rel.x + matched.y * rel.y) / d
+            if abs(along / d - e.distance_scale) <= OUTLIER_SCALE:
+                self._dist[0] += d
+                self._dist[1] += along
+                e.distance_seen = self._dist[0]
+                if self._dist[0] >= lim.odometry_calibration_min:
+                    e.distance_scale = _clip(self._dist[1] / self._dist[0], lim.distance_scale_limit)
+                    e.distance_applied = lim.odometry_calibration and (
+                        e.distance_applied or abs(e.distance_scale - 1.0) > lim.distance_scale_deadband)
+        self._solve_heading()
+
+    def _solve_heading(self) -> None:
+        """Turn scale and drift: from the turns on the spot and the straight stretches where there are
+        enough of them (each its own ratio, the errors at the ends only), else from all steps at once
+        when they tell the two apart (a sparse log of arcs), else the drift given the turn scale."""
+        lim, e = self.lim, self.est
+        ty, tf, tb = self._rows_t
+        fy, ff, fb = self._rows_f
+        spins = lim.turn_calibration and self._turn[0] >= lim.turn_calibration_min
+        e.turn_seen = self._turn[0]
+        if not (self._dist[0] >= lim.odometry_calibration_min and ff >= lim.odometry_calibration_min / 2):
+            if spins:
+                e.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
             return
-        along = (matched.x * rel.x + matched.y * rel.y) / d
-        if abs(along / d - self.est.distance_scale) > OUTLIER_SCALE:
-            return
-        forward = math.copysign(d, rel.x)
-        unexplained = wrap_angle(dyaw - rel.yaw * self.est.turn_scale)
-        drift_ok = abs(rel.yaw) < lim.angularUpdate and abs(unexplained / d - self.est.drift_per_m) <= OUTLIER_DRIFT
-        self._dist[0] += d
-        self._dist[1] += along
-        if drift_ok:
-            self._drift[0] += forward
-            self._drift[1] += unexplained
-        self.est.distance_seen = self._dist[0]
-        e = self.est
-        if self._dist[0] >= lim.odometry_calibration_min:
-            e.distance_scale = _clip(self._dist[1] / self._dist[0], lim.distance_scale_limit)
-            e.distance_applied = lim.odometry_calibration and (
-                e.distance_applied or abs(e.distance_scale - 1.0) > lim.distance_scale_deadband)
-            if abs(self._drift[0]) >= lim.odometry_calibration_min / 2:
-                k = self._drift[1] / self._drift[0]
-                e.drift_per_m = max(-lim.drift_limit, min(lim.drift_limit, k))
-                e.drift_applied = lim.odometry_calibration and (
-                    e.drift_applied or abs(e.drift_per_m) > lim.drift_deadband)
+        straight = abs(self._straight[0]) >= lim.odometry_calibration_min / 2
+        det = ty * ff - tf * fy
+        if spins or not lim.turn_calibration:
+            if spins:
+                e.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
+            k = self._straight[1] / self._straight[0] if straight else (fb - fy * e.turn_scale) / ff
+        elif ty >= lim.turn_calibration_min and det >= MIN_CONDITION * ty * ff:
+            e.turn_scale = _clip((tb * ff - tf * fb) / det, lim.turn_scale_limit)
+            e.turn_seen = ty
+            k = (ty * fb - fy * tb) / det
+        else:
+            k = self._straight[1] / self._straight[0] if straight else (fb - fy * e.turn_scale) / ff
+        e.drift_per_m = max(-lim.drift_limit, min(lim.drift_limit, k))
+        e.drift_applied = lim.odometry_calibration and (
+            e.drift_applied or abs(e.drift_per_m) > lim.drift_deadband)
 
 
 def _clip(ratio: float, limit: float) -> float:
