@@ -177,22 +177,19 @@ class OdometryBias:
         fy, ff, fb = self._rows_f
         spins = lim.turn_calibration and self._turn[0] >= lim.turn_calibration_min
         e.turn_seen = self._turn[0]
+        if spins:
+            e.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
         if not (self._dist[0] >= lim.odometry_calibration_min and ff >= lim.odometry_calibration_min / 2):
-            if spins:
-                e.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
             return
-        straight = abs(self._straight[0]) >= lim.odometry_calibration_min / 2
         det = ty * ff - tf * fy
-        if spins or not lim.turn_calibration:
-            if spins:
-                e.turn_scale = _clip(self._turn[1] / self._turn[0], lim.turn_scale_limit)
-            k = self._straight[1] / self._straight[0] if straight else (fb - fy * e.turn_scale) / ff
-        elif ty >= lim.turn_calibration_min and det >= MIN_CONDITION * ty * ff:
+        if lim.turn_calibration and not spins and ty >= lim.turn_calibration_min and det >= MIN_CONDITION * ty * ff:
             e.turn_scale = _clip((tb * ff - tf * fb) / det, lim.turn_scale_limit)
             e.turn_seen = ty
             k = (ty * fb - fy * tb) / det
+        elif abs(self._straight[0]) >= lim.odometry_calibration_min / 2:
+            k = self._straight[1] / self._straight[0]
         else:
-            k = self._straight[1] / self._straight[0] if straight else (fb - fy * e.turn_scale) / ff
+            k = (fb - fy * e.turn_scale) / ff
         e.drift_per_m = max(-lim.drift_limit, min(lim.drift_limit, k))
         e.drift_applied = lim.odometry_calibration and (
             e.drift_applied or abs(e.drift_per_m) > lim.drift_deadband)
