@@ -377,10 +377,9 @@ def run_stream(cfg: dict, robots: list, names: list[str], launch, log: Path) -> 
     wall_s = time.monotonic() - t0_wall
     rospy.signal_shutdown("demo done")
     figures = summarise(results, len(robots))
-    with watch.lock:
-        bumps = sum(watch.bumps.values())
     out = LOG_DIR / "fleet.json"
     with watch.lock:
+        bumps = sum(watch.bumps.values())
         served_twice = sorted(i for i, seen in watch.states.items() if seen.count("served") > 1)
         metres = dict(watch.metres)
     lost = [o["id"] for o in results if o["state"] in ("unfinished", "not placed")]

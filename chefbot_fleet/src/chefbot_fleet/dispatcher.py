@@ -250,7 +250,7 @@ class Dispatcher:
             if r.state == "offline":
                 raise ValueError(f"{name} is offline (not heard from for {self.cfg.stale_s:g} s): it resumes "
                                  "by itself when it reports again")
-            if r.state not in ("paused", "fault", "lost", "charging", "to_charger"):
+            if r.state not in OUT_OF_SERVICE:     # offline: above
                 return f"{name} is {r.state}: nothing to resume"
             if r.state == "lost":        # staff vouch for its pose (e.g. gave it with RViz's 2D Pose Estimate)
                 r.doubt_since, r.doubt = None, ""
