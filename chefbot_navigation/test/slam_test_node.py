@@ -8,6 +8,7 @@ import time
 import unittest
 
 import rosbag
+import rosgraph
 import rospy
 import rostest
 import tf2_ros
@@ -17,6 +18,7 @@ from nav_msgs.srv import GetMap
 from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import Imu, LaserScan
 from std_msgs.msg import Bool
+from std_srvs.srv import SetBool
 
 from chefbot_navigation.ros_io import msg_to_occupancy
 
@@ -38,6 +40,23 @@ class SlamNodeTest(unittest.TestCase):
         rospy.Subscriber("/diagnostics", DiagnosticArray, cls._on_diag, queue_size=20)
         cls.imu = rospy.Publisher("imu/data", Imu, queue_size=5)
         cls.bumper = rospy.Publisher("bumper", Bool, queue_size=5)
+        cls.start_playback()
+
+    @classmethod
+    def start_playback(cls) -> None:
+        """Unpause the bag once the slam nodes and this one listen to /tf_static and /scan: the bag's one
+        /tf_static message is not latched, and a node that starts after it never learns the camera's
+        pose on the base (a loaded machine started the slam node more than play's 2 s delay late)."""
+        master = rosgraph.Master(rospy.get_name())
+        listeners = {"/tf_static": {"/slam", "/bad/slam", rospy.get_name()}, "/scan": {"/slam"}}
+        end = time.monotonic() + 120.0
+        while time.monotonic() < end and not rospy.is_shutdown():
+            subs = {topic: set(nodes) for topic, nodes in master.getSystemState()[1]}
+            if all(want <= subs.get(topic, set()) for topic, want in listeners.items()):
+                break
+            time.sleep(0.2)
+        rospy.wait_for_service("/play/pause_playback", timeout=60.0)
+        rospy.ServiceProxy("/play/pause_playback", SetBool)(False)
 
     @classmethod
     def _on_log(cls, msg: Log) -> None:
