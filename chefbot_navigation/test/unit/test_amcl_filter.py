@@ -10,7 +10,7 @@ from amcl_scenes import cast, drifting_odometry, lawnmower, room_map, symmetric_
 
 from chefbot_common.geometry import Pose2D, wrap_angle
 from chefbot_common.grid import GridInfo, OccupancyMap
-from chefbot_navigation.amcl.filter import FilterConfig, ParticleFilter
+from chefbot_navigation.amcl.filter import TRACKED_INJECT_MAX, FilterConfig, ParticleFilter
 from chefbot_navigation.amcl.localizer import OK, WARN, Amcl, AmclConfig
 from chefbot_navigation.amcl.motion import DiffMotionNoise
 from chefbot_navigation.amcl.sensor import LaserModel, LikelihoodField, MapError, select_beams
@@ -282,6 +282,27 @@ def test_no_scans_the_spread_grows_with_driving_and_diagnostics_say_so() -> None
     assert amcl.diagnostics(amcl.last_scan)[0] in (OK, WARN)
 
 
+def test_late_scans_are_not_missing_scans() -> None:
+    """On a loaded machine scans come 1-1.5 s after their stamps.  Counted by the stamps they were all
+    missing: diagnostics said "no scan" and the node moved the particles by odometry alone between
+    them.  The age is taken from when the last scan came (last_heard, set by the node) when known."""
+    amcl = Amcl(config(initial_pose_x=2.0, initial_pose_y=3.0))
+    amcl.set_map(ROOM)
+    truth = Pose2D(2.0, 3.0, 0.0)
+    ranges = scan_from(truth, CAMERA, np.random.default_rng(0))
+    amcl.last_heard = 11.4                        # came at 11.4 s, stamped 10.0 s
+    amcl.update(truth, ranges, CAMERA, 0.45, 8.0, LASER, 10.0)
+    assert amcl.scan_age(11.9) == pytest.approx(0.5)
+    level, message, values = amcl.diagnostics(11.9)
+    assert "no scan" not in message and values["scan_latency"] == pytest.approx(1.4)
+    level, message, _ = amcl.diagnostics(12.6)    # and none since: 1.2 s > scan_timeout 1 s
+    assert level == WARN and message.startswith("no scan for 1.2 s")
+    by_stamp = Amcl(config(initial_pose_x=2.0, initial_pose_y=3.0))
+    by_stamp.set_map(ROOM)
+    by_stamp.update(truth, ranges, CAMERA, 0.45, 8.0, LASER, 10.0)
+    assert by_stamp.scan_age(11.9) == pytest.approx(1.9)    # no arrival time given: the stamp
+
+
 def test_config_rejects_bad_values_by_name() -> None:
     with pytest.raises(ValueError, match="min_particles"):
         AmclConfig(min_particles=3000)
@@ -349,6 +370,35 @@ def test_a_fit_that_never_was_good_still_injects() -> None:
     assert fresh.w_diff == 0.0              # nothing weighed yet
     with pytest.raises(ValueError, match="recovery_poor_fit_rate"):
         FilterConfig(poor_fit_rate=1.0)
+
+
+def test_no_injection_while_the_estimates_own_particles_fit_the_scan() -> None:
+    """The set's mean fit counts the injected particles, most of which fit poorly: with scans late (a
+    loaded machine) that mean stayed low, injected more, and a look-alike took the estimate from a
+    cluster that fitted the scans.  While the particles around the estimate fit well at most
+    TRACKED_INJECT_MAX is injected; after a kidnap they fit badly and the averages' rule injects as before."""
+    truth = Pose2D(2.5, 3.0, 0.3)
+    field = LikelihoodField(ROOM, LaserModel(sigma_hit=0.1))
+    ranges = scan_from(truth, CAMERA, np.random.default_rng(0))
+    endpoints = select_beams(ranges, CAMERA, 0.45, 8.0, 60, LASER)
+
+    def weighed(tracked: Pose2D) -> ParticleFilter:
+        pf = ParticleFilter(FilterConfig(min_particles=10, max_particles=400, max_fit=0.7),
+                            np.random.default_rng(0))
+        pf.init_gaussian(truth, np.diag([1e-4, 1e-4, 1e-4]))
+        pf.particles[200:] = field.sample_free(200, np.random.default_rng(1))   # half injected guesses
+        pf.tracked = tracked
+        pf.weigh(field, endpoints, 8.0)
+        pf.w_slow, pf.w_fast, pf.last_fit = 1.0, 0.4, 0.45   # the averages and the set's mean say: inject
+        return pf
+
+    on_track = weighed(truth)
+    assert on_track.tracked_fit > 0.7, on_track.tracked_fit
+    assert on_track.w_diff == pytest.approx(TRACKED_INJECT_MAX)   # capped: the set is not replaced
+    assert TRACKED_INJECT_MAX < 0.5
+    kidnapped = weighed(Pose2D(6.0, 2.0, 2.0))      # the estimate is elsewhere: its particles fit nothing
+    assert not kidnapped.tracked_fit >= 0.7         # nan (no particle there) or a poor fit
+    assert kidnapped.w_diff == pytest.approx(0.6)
 
 
 def test_global_localization_leaves_a_poorly_fitting_look_alike() -> None:

@@ -99,7 +99,8 @@ class AmclConfig:
     recovery_poor_fit_rate: float = 0.0  # ours: while no particle's mean beam fit reaches recovery_max_fit, at least
                                         # this fraction of the set is injected per resampling (0: amcl, the alphas
                                         # alone)
-    scan_timeout: float = 1.0           # ours: s without a scan before the node says so
+    scan_timeout: float = 1.0           # ours: s since the last scan came (its arrival, not its stamp) before the node
+                                        # says so and moves the particles by odometry alone
     spread_warn: float = 0.5            # ours: m, position stddev above which diagnostics warn
     fit_warn: float = 0.5               # ours: mean beam fit (0..1) below which diagnostics warn
 
@@ -182,6 +183,9 @@ class Amcl:
         self.estimate: Estimate | None = None
         self.map_T_odom: Pose2D | None = None
         self.last_scan: float | None = None   # s, stamp of the last scan used
+        # s, the caller's clock when the last scan came (None: use its stamp). A loaded machine delivers
+        # scans 1-1.5 s after their stamps: by the stamps alone they would all count as missing
+        self.last_heard: float | None = None
         self.scan_times: deque[float] = deque(maxlen=200)     # stamps (s) of recent scans handled
         self.update_times: deque[float] = deque(maxlen=200)   # stamps (s) of recent filter updates
         self.update_ms: deque[float] = deque(maxlen=50)       # wall-clock cost (ms) of recent updates
@@ -313,6 +317,13 @@ class Amcl:
         return {"initial_pose_x": p.x, "initial_pose_y": p.y, "initial_pose_a": p.yaw,
                 "initial_cov_xx": float(c[0, 0]), "initial_cov_yy": float(c[1, 1]), "initial_cov_aa": float(c[2, 2])}
 
+    def scan_age(self, t: float) -> float:
+        """s since the last scan came at time ``t`` (by ``last_heard`` when the caller sets it, else by the
+        scan's stamp); inf before the first."""
+        if self.last_scan is None:
+            return math.inf
+        return t - (self.last_heard if self.last_heard is not None else self.last_scan)
+
     def diagnostics(self, t: float) -> tuple[int, str, dict[str, float]]:
         """(level, message, values) for /diagnostics at time ``t`` (s)."""
         cfg = self.cfg
@@ -327,8 +338,10 @@ class Amcl:
             e = self.estimate
             values.update(x=e.pose.x, y=e.pose.y, yaw=e.pose.yaw, std_xy=e.spread,
                           std_yaw=math.sqrt(max(e.cov[2, 2], 0.0)))
-        age = math.inf if self.last_scan is None else t - self.last_scan
+        age = self.scan_age(t)
         values["scan_age"] = age
+        if self.last_scan is not None and self.last_heard is not None:
+            values["scan_latency"] = self.last_heard - self.last_scan
         values["scans_per_s"] = float(sum(1 for s in self.scan_times if t - 2.0 < s <= t)) / 2.0
         values["updates_per_s"] = float(sum(1 for s in self.update_times if t - 2.0 < s <= t)) / 2.0
         values["update_ms_mean"] = float(sum(self.update_ms) / len(self.update_ms)) if self.update_ms else math.nan
