@@ -39,7 +39,7 @@ from chefbot_navigation.amcl.sensor import LikelihoodField
 
 REFINE_JITTER = np.array([0.08, 0.08, 0.06])   # m, m, rad: stddev of the second round's copies
 TRACK_XY, TRACK_YAW = 0.5, 0.5                  # m, rad: a cluster this near the last estimate continues it
-TRACKED_INJECT_MAX = 0.1                        # injected share while the estimate's particles fit well
+TRACKED_INJECT_MAX = 0.2                        # injected share while the estimate's particles fit well
 MAJORITY = 0.5                                  # weight share above which the estimate's cluster is "the" pose
 
 
@@ -212,7 +212,8 @@ class ParticleFilter:
         # kept injecting 10 % after the true pose was found.
         poor = self.cfg.poor_fit_rate if math.isfinite(self.best_fit) and self.best_fit < self.cfg.max_fit else 0.0
         w_diff = max(poor, 1.0 - self.w_fast / self.w_slow)
-        # While the particles around the estimate fit well, at most TRACKED_INJECT_MAX: the set's mean
+        # While the particles around the estimate fit well, at most TRACKED_INJECT_MAX (0.2; at 0.1
+        # sim_navigation.test missed its tolerances in 2 of 9 runs): the set's mean
         # counts the injected particles, most of which fit poorly, and kept the mean and w_fast down,
         # which injected more.  With scans 1-1.5 s late (a loaded machine) the injected share ran away
         # to 60-75 % of the set and a look-alike took the estimate from a cluster that fitted the
