@@ -23,6 +23,7 @@ import unittest
 import actionlib
 import rospy
 import rostest
+from actionlib import CommState
 from actionlib_msgs.msg import GoalStatus
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool
@@ -139,7 +140,9 @@ class FleetDispatchTest(unittest.TestCase):
         served_by = {self.watch.orders()[i].assigned for i in ids}
         self.assertEqual(served_by, set(ROBOTS), "both robots served orders")
         for i in ids[:5]:
-            wait_for(lambda i=i: self.handles[i].get_goal_status() == GoalStatus.SUCCEEDED, 30.0, f"{i}'s goal")
+            # the result too: the status topic can tell SUCCEEDED before the result topic delivers it
+            wait_for(lambda i=i: self.handles[i].get_comm_state() == CommState.DONE, 30.0, f"{i}'s result")
+            self.assertEqual(self.handles[i].get_goal_status(), GoalStatus.SUCCEEDED, f"{i}'s goal")
             self.assertEqual(self.handles[i].get_result().state, "served")
         self.assertEqual(self.watch.contacts, {r: 0 for r in ROBOTS})
         # each robot's battery (the simulator's battery_state) reaches the dispatcher
