@@ -185,12 +185,17 @@ class ParticleFilter:
         self.best_fit = float(fit.max())
         self.tracked_fit = math.nan
         if self.tracked is not None:
-            t, p = self.tracked, self.particles
-            yaw = np.abs(np.mod(p[:, 2] - t.yaw + math.pi, 2.0 * math.pi) - math.pi)
-            mine = (np.hypot(p[:, 0] - t.x, p[:, 1] - t.y) <= TRACK_XY) & (yaw <= TRACK_YAW)
-            if mine.any() and self.weights[mine].sum() > 0.0:
-                self.tracked_fit = float(self.weights[mine] @ fit[mine] / self.weights[mine].sum())
+            mine = self._near(self.tracked.x, self.tracked.y, self.tracked.yaw)
+            share = float(self.weights[mine].sum())
+            if share > 0.0:
+                self.tracked_fit = float(self.weights[mine] @ fit[mine]) / share
         return self.last_fit
+
+    def _near(self, x: float, y: float, yaw: float) -> np.ndarray:
+        """Mask of the particles within TRACK_XY / TRACK_YAW of the pose (x, y, yaw)."""
+        p = self.particles
+        dyaw = np.abs(np.mod(p[:, 2] - yaw + math.pi, 2.0 * math.pi) - math.pi)
+        return (np.hypot(p[:, 0] - x, p[:, 1] - y) <= TRACK_XY) & (dyaw <= TRACK_YAW)
 
     @property
     def w_diff(self) -> float:
@@ -275,10 +280,9 @@ class ParticleFilter:
             return True
         best = []
         for c in (a, b):
-            p = self.particles
-            yaw = np.abs(np.mod(p[:, 2] - c.mean[2] + math.pi, 2.0 * math.pi) - math.pi)
-            mine = (np.hypot(p[:, 0] - c.mean[0], p[:, 1] - c.mean[1]) <= TRACK_XY) & (yaw <= TRACK_YAW)
-            best.append(float(self._field.weights(p[mine], pts, self._range_max)[1].max()) if mine.any() else 0.0)
+            mine = self._near(*c.mean)
+            best.append(float(self._field.weights(self.particles[mine], pts, self._range_max)[1].max())
+                        if mine.any() else 0.0)
         return best[0] > best[1] + self.cfg.min_gain
 
     def estimate(self) -> tuple[Pose2D, np.ndarray, list[Cluster]]:
