@@ -16,7 +16,7 @@ and goal is checked to be free on the site's map (0.25 m from any obstacle).
 
 Used by tests/bench/bench_fleet.py (one process per run: rospy joins one master per process); by hand
 (JSON out; ``--only=I``: robot I's leg alone):
-    python tools/fleet_scenarios.py hotel head_on [SEED] [--only=I]
+    python tools/fleet_scenarios.py hotel head_on [SEED] [--only=I] [--keep-logs]
 """
 from __future__ import annotations
 
@@ -124,10 +124,11 @@ def scenario(site: str, name: str):
                             + ", ".join(f"{s}/{n}" for s in SCENARIOS for n in SCENARIOS[s])) from None
 
 
-def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, log_dir: Path | None = None
-        ) -> tuple[list[RobotResult], float]:
+def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, log_dir: Path | None = None,
+        keep_logs: bool = False) -> tuple[list[RobotResult], float]:
     """Run ``legs`` [(start, goal)] at once in ``site``; the robots' results and the sim seconds until the
-    last result.  The launch and its nodes are stopped before it returns."""
+    last result.  The launch and its nodes are stopped before it returns.  The run's logs are kept (their
+    directory named on stderr) when a robot failed or touched something, or with ``keep_logs``."""
     check_poses(site, legs)
     world, map_file = SITES[site]
     names = [f"chefbot{i + 1}" for i in range(len(legs))]
@@ -149,7 +150,7 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
     keep = True     # the run's logs stay (printed) unless every robot arrived (or stayed parked) without contact
     try:
         robots, seconds = _drive(names, legs, launch, tmp)
-        keep = not all((r.arrived or r.parked) and r.bumps == 0 for r in robots)
+        keep = keep_logs or not all((r.arrived or r.parked) and r.bumps == 0 for r in robots)
         return robots, seconds
     finally:
         try:
@@ -229,7 +230,7 @@ def run_process(site: str, name: str, seed: int = 0, only: int | None = None) ->
 
 
 def main() -> int:
-    args = [a for a in sys.argv[1:] if not a.startswith("--only=")]
+    args = [a for a in sys.argv[1:] if not a.startswith("--only=") and a != "--keep-logs"]
     only = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--only=")), None)
     if len(args) < 2:
         print(__doc__, file=sys.stderr)
@@ -241,7 +242,7 @@ def main() -> int:
         if only is not None:
             legs = [legs[only]]
         w0 = time.monotonic()
-        robots, seconds = run(site, legs, seed)
+        robots, seconds = run(site, legs, seed, keep_logs="--keep-logs" in sys.argv[1:])
     except (ScenarioError, IndexError) as exc:
         print(f"fleet_scenarios: {exc}", file=sys.stderr)
         return 2
