@@ -52,7 +52,9 @@ WHEEL_HISTORY_S = 1.0   # s of wheel turning kept to place IMU samples in time (
 # How far this process's clock may lag the encoder stream (a stalled host or, in sim, a /clock
 # that reaches this node late: the ticks then run ahead of the time they are judged against).
 # A jump that a lag this long explains is held back until the clock catches up, not dropped.
-CLOCK_LAG_S = 0.3
+# 1 s: with two simulations on a loaded 2-core machine diff_tf's /clock fell ~0.7 s behind the firmware's
+# ticks, and at 0.3 s the step was re-baselined: 0.2 m of travel lost, the robot's estimate 0.22 m off.
+CLOCK_LAG_S = 1.0
 
 
 def integrate_arc(x: float, y: float, theta: float, dl: float, dr: float,

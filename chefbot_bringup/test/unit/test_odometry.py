@@ -311,7 +311,7 @@ def test_a_jump_no_late_clock_explains_still_rebaselines():
     odo = started()
     t, left, right = drive(odo, 0.2, 0.2, 1.0)
     x = odo.x
-    odo.set_ticks(left + round(0.5 * TPM), right + round(0.5 * TPM))   # 0.5 m in one line
+    odo.set_ticks(left + round(0.8 * TPM), right + round(0.8 * TPM))   # 0.8 m in one line (a 1 s late clock: 0.59)
     odo.update(t + 0.01)
     assert odo.resets == 1 and odo.x == pytest.approx(x)
 
@@ -402,7 +402,7 @@ def test_jump_limit_is_in_metres_of_each_wheel():
         odo.update(1.0)
         return odo.resets
     assert jumps(TPM) == 0
-    assert jumps(TPM / 1.6) == 1   # the right wheel's 0.8 m: too far even for a late clock (0.755 m)
+    assert jumps(TPM / 2.5) == 1   # the right wheel's 1.25 m: too far even for a late clock (1.151 m)
 
 
 @pytest.mark.parametrize("bad", [0.0, -29708.0, math.inf, math.nan, "29708", True])
