@@ -18,11 +18,14 @@ it came (move_base's ``~give_way``), and the pair is not judged again for ``cool
 Chains of three or more are resolved pair by pair.
 
 An **idle robot in the way** -- one without a goal, parked on another's path or goal, or inside a
-single-lane zone another robot waits for -- never moves by itself.  When a robot with a goal has
-stood still for ``stall_time`` s with an idle one within the first ``look_ahead`` m of its plan (or
-waits for a zone the idle one holds), the idle one *makes room*: :func:`room_spot` picks the nearest
-free spot it can reach that is outside every zone and clear of every other robot and of their plans,
-and the caller sends it there.
+single-lane zone another robot waits for -- never moves by itself.  It *makes room* at once when it
+stands on a robot's goal (the plan ends within the two radii plus ``clearance`` of it) or holds the
+zone a robot is held for; when a robot with a goal has stood still for ``stall_time`` s with an idle
+one within the first ``look_ahead`` m of its plan, too.  :func:`room_spot` picks the nearest free
+spot it can reach -- past the other robots' bodies, not through them -- that is outside every zone
+and clear of every other robot and of their plans, and the caller sends it there.  With no such spot
+only because a robot waiting for a zone stands in the way out (at the mouth of the aisle the idle
+one must leave), the caller tells that one to back off and asks again (:meth:`BlockDetector.retry`).
 
 A robot **waiting for a zone in the way** -- held by the traffic rule where the robot coming out of
 the zone must pass -- backs off (as a yielder of a mutual block) when that robot has stood still for
@@ -86,9 +89,15 @@ class Block:
     stalled_for: float                  # s both had stood still when it was caught (idle, waiting: ``other`` had)
     idle: bool = False
     waiting: bool = False               # the yielder waits for a zone, in the way of ``other``: it backs off
+    where: str = "way"                  # idle: "way" (on its plan), "goal" (on its goal), "zone" (in the zone it
+                                        # is held for)
 
     def text(self) -> str:
         """One line for logs and diagnostics."""
+        if self.idle and self.where == "goal":
+            return f"{self.yielder} stands idle on {self.other}'s goal: {self.yielder} makes room"
+        if self.idle and self.where == "zone":
+            return f"{self.yielder} stands idle in the zone {self.other} waits for: {self.yielder} makes room"
         if self.idle:
             return (f"{self.yielder} stands idle in {self.other}'s way ({self.other} stood still "
                     f"{self.stalled_for:.1f} s): {self.yielder} makes room")
@@ -127,14 +136,24 @@ def in_the_way(a: RobotView, b: RobotView, look_ahead: float, clearance: float) 
     return bool(np.min(np.hypot(ahead[:, 0] - b.x, ahead[:, 1] - b.y)) < a.radius + b.radius + clearance)
 
 
+def on_its_goal(a: RobotView, b: RobotView, clearance: float) -> bool:
+    """Does ``a``'s plan end within the two radii plus ``clearance`` of ``b`` (``b`` stands on ``a``'s goal)?"""
+    if not len(a.path):
+        return False
+    gx, gy = a.path[-1]
+    return math.hypot(gx - b.x, gy - b.y) < a.radius + b.radius + clearance
+
+
 def room_spot(clearance: np.ndarray, info, keep_out: np.ndarray | None, me: RobotView, others: list[RobotView],
-              cfg: BlockConfig) -> tuple[float, float] | None:
+              cfg: BlockConfig, ghosts: frozenset[str] = frozenset()) -> tuple[float, float] | None:
     """Where the idle robot ``me`` makes room: the free spot nearest to it (straight line, within
     ``cfg.room_distance``) that
 
     * is ``me.radius`` + ``cfg.room_margin`` from the map's obstacles (``clearance``: (H, W) m from each
       cell to the nearest obstacle; ``info``: the map's GridInfo),
-    * it can reach: connected to it through cells ``me.radius`` from obstacles,
+    * it can reach: connected to it through cells ``me.radius`` from obstacles and the two radii +
+      ``cfg.clearance`` from every other robot but ``ghosts`` (robots about to move off; a robot already
+      nearer than that leaves a way out from where ``me`` stands),
     * lies outside ``keep_out`` ((H, W) bool, e.g. where it would touch a single-lane zone),
     * is the two radii + ``cfg.clearance`` + ``cfg.room_margin`` from every other robot and from every
       point of their remaining plans.
@@ -146,6 +165,12 @@ def room_spot(clearance: np.ndarray, info, keep_out: np.ndarray | None, me: Robo
     if not (0 <= row < h and 0 <= col < w):
         return None
     passable = clearance >= me.radius
+    bodies = [o for o in others if o.name not in ghosts]
+    if bodies:
+        cx, cy = (np.asarray(v, float) for v in info.cell_to_world(*np.indices(clearance.shape)))
+        for o in bodies:
+            reach = min(me.radius + o.radius + cfg.clearance, math.hypot(me.x - o.x, me.y - o.y) - res)
+            passable &= np.hypot(cx - o.x, cy - o.y) >= reach
     if not passable.any():
         return None
     pieces, _ = ndimage.label(passable, structure=np.ones((3, 3), bool))
@@ -185,6 +210,12 @@ class BlockDetector:
         self.last: Block | None = None          # the latest block resolved (diagnostics)
         self.count = 0                          # blocks resolved so far
 
+    def retry(self, block: Block, t: float, after: float) -> None:
+        """``block`` could not be resolved at ``t`` (no spot to make room at yet): its pair is judged again
+        ``after`` s from ``t`` instead of after the cooldown, and it is not counted."""
+        self.resolved[frozenset((block.yielder, block.other))] = t - self.cfg.cooldown + after
+        self.count -= 1
+
     def forget(self, name: str) -> None:
         """A robot is not heard of (no pose): its stall starts afresh when it is back."""
         self.history.pop(name, None)
@@ -205,8 +236,9 @@ class BlockDetector:
     def update(self, t: float, robots: list[RobotView], zone_waits: list[tuple[str, str]] = ()) -> list[Block]:
         """Record the robots' positions at ``t`` (s); the new blocks: mutual ones, each with its yielder
         (the robot later in ``robots``), robots waiting for a zone in a stalled robot's way (they back
-        off) and idle robots in a stalled robot's way (they make room).  ``zone_waits``: (waiting robot,
-        holder) of the traffic rule's zones.  A robot yields at most once per call."""
+        off) and idle robots on a robot's goal, in the zone it is held for or in a stalled robot's way
+        (they make room).  ``zone_waits``: (waiting robot, holder) of the traffic rule's zones.  A robot
+        yields at most once per call."""
         c = self.cfg
         for r in robots:
             hist = self.history.setdefault(r.name, deque())
@@ -245,15 +277,23 @@ class BlockDetector:
                 if a.held and len(a.path) and judged(a, b) and stalled[b.name] >= c.stall_time \
                         and in_the_way(b, a, c.look_ahead, c.clearance):
                     resolve(Block(a.name, b.name, stalled[b.name], waiting=True))
-        # an idle robot in the way of a stalled one, or holding the zone it waits for: it makes room
+        # an idle robot on a robot's goal or in the zone it is held for (at once), or in the way of a
+        # stalled one: it makes room
         idle = {r.name: r for r in robots if not len(r.path)}
         waits = {(r, h) for r, h in zone_waits if h in idle}
         for b in robots:
-            stood = self.stalled_for(b.name, t) if len(b.path) else 0.0
-            if stood < c.stall_time:
+            if not len(b.path):
                 continue
+            stood = self.stalled_for(b.name, t)
             for a in idle.values():
-                if judged(a, b) and ((b.name, a.name) in waits or
-                                     (not b.held and in_the_way(b, a, c.look_ahead, c.clearance))):
+                if not judged(a, b):
+                    continue
+                zone = (b.name, a.name) in waits
+                if zone and b.held:
+                    resolve(Block(a.name, b.name, stood, idle=True, where="zone"))
+                elif on_its_goal(b, a, c.clearance):
+                    resolve(Block(a.name, b.name, stood, idle=True, where="goal"))
+                elif stood >= c.stall_time and (zone or (not b.held and in_the_way(b, a, c.look_ahead,
+                                                                                   c.clearance))):
                     resolve(Block(a.name, b.name, stood, idle=True))
         return blocks

@@ -126,6 +126,36 @@ def test_an_idle_robot_holding_the_zone_another_waits_for_makes_room() -> None:
     assert [(bl.yielder, bl.other, bl.idle) for bl in blocks] == [("chefbot2", "chefbot1", True)]
 
 
+def test_an_idle_robot_on_a_robots_goal_or_in_the_zone_it_is_held_for_makes_room_at_once() -> None:
+    det = BlockDetector(BlockConfig(stall_time=5.0))
+    a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 3.0))                # driving, not stalled
+    b = RobotView("chefbot2", 3.0, 0.3, 0.2)                                # idle, 0.3 m from a's goal
+    blocks = det.update(0.0, [a, b])
+    assert [(bl.yielder, bl.other, bl.idle, bl.where) for bl in blocks] == [("chefbot2", "chefbot1", True, "goal")]
+    assert "chefbot2 stands idle on chefbot1's goal" in blocks[0].text()
+    b.y = 0.6                                                               # beside the goal: not asked
+    assert BlockDetector(BlockConfig()).update(0.0, [a, b]) == []
+    det = BlockDetector(BlockConfig(stall_time=5.0))
+    a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 5.0), held=True)
+    b = RobotView("chefbot2", 4.0, 0.0, 0.2)
+    blocks = det.update(0.0, [a, b], zone_waits=[("chefbot1", "chefbot2")])
+    assert [(bl.yielder, bl.where) for bl in blocks] == [("chefbot2", "zone")]
+    assert "chefbot2 stands idle in the zone chefbot1 waits for" in blocks[0].text()
+    a.held = False                  # asked for the zone but not yet at its apron: only after stall_time
+    assert BlockDetector(BlockConfig()).update(0.0, [a, b], zone_waits=[("chefbot1", "chefbot2")]) == []
+
+
+def test_a_block_not_resolved_now_is_judged_again_after_the_retry_time() -> None:
+    det = BlockDetector(BlockConfig(stall_time=5.0, cooldown=15.0))
+    a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 3.0))
+    b = RobotView("chefbot2", 3.0, 0.0, 0.2)
+    (block,) = det.update(0.0, [a, b])
+    det.retry(block, 0.0, 1.0)
+    assert det.count == 0
+    assert det.update(0.5, [a, b]) == []
+    assert len(det.update(1.0, [a, b])) == 1 and det.count == 1
+
+
 RES = 0.05
 
 
@@ -174,3 +204,22 @@ def test_a_robot_waiting_for_a_zone_in_the_way_of_one_coming_out_gives_way() -> 
     assert "chefbot1 waits for a zone in chefbot2's way" in blocks[0].text()
     det = BlockDetector(BlockConfig())
     assert [b.yielder for b in run(det, robots[::-1], 0.0, 6.0)] == ["chefbot1"]
+
+
+def test_room_spot_is_reached_past_the_other_robots_not_through_them() -> None:
+    """A dead-end aisle 0.6 m wide (x 3.8-4.4, y 0-2) off a hall (y 2-4); the idle robot stands in it, a
+    robot waiting for the aisle stands at its mouth: no spot can be reached until that one moves off."""
+    clearance, info = room([(0.0, 2.0, 8.0, 4.0), (3.8, 0.0, 4.4, 2.0)])
+    keep = np.zeros(clearance.shape, bool)
+    keep[:int(2.3 / RES), int(3.5 / RES):int(4.7 / RES)] = True               # the aisle and its apron
+    me = RobotView("idle", 4.1, 0.5, 0.2)
+    down = np.column_stack((np.full(50, 4.1), np.linspace(2.35, 0.5, 50)))    # its plan: into the aisle
+    waiting = RobotView("busy", 4.1, 2.35, 0.2, down, held=True)
+    cfg = BlockConfig()
+    assert room_spot(clearance, info, keep, me, [waiting], cfg) is None
+    x, y = room_spot(clearance, info, keep, me, [waiting], cfg, ghosts=frozenset({"busy"}))
+    assert not keep[int(y / RES), int(x / RES)]
+    assert np.hypot(x - 4.1, y - 2.35) >= 0.2 + 0.2 + cfg.clearance + cfg.room_margin - RES
+    waiting.y = 3.5                                                            # out of the mouth: reachable
+    waiting.path = np.column_stack((np.full(50, 4.1), np.linspace(3.5, 0.5, 50)))
+    assert room_spot(clearance, info, keep, me, [waiting], cfg) is not None
