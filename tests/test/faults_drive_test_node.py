@@ -44,6 +44,8 @@ XY_TOL, YAW_TOL = 0.08, 0.08      # m, rad: final ground-truth error (as sim_nav
 STOPPED = 0.01                    # m/s: ground-truth speed of a robot at rest
 UNPLUG_STOP = 1.0                 # s sim: firmware watchdog 0.5 s + braking
 SILENCE_STOP = 1.0                # s sim: twist_to_motors' 0.36 s command timeout + braking
+TOP_SPEED = 0.377                 # m/s, the robot's top speed (the firmware's free speed on the wheels)
+STAMP_JITTER = 0.1                # s, how late an encoder line may arrive (diff_tf stamps odometry with its arrival)
 SHORT_OUTAGE = 3.0                # s sim: well inside move_base's controller_patience (15 s)
 LAUNCHPAD = "chefbot: launchpad"
 
@@ -55,8 +57,9 @@ class Drive:
         self.lock = threading.Lock()
         self.diag: DiagnosticStatus | None = None
         self.levels: list[tuple[float, int]] = []
-        self.odom_prev: tuple[float, float, float] | None = None
+        self.odom_prev: tuple[float, float, float, float] | None = None   # stamp, x, y, yaw
         self.odom_jump = 0.0              # m, largest step between consecutive odom messages
+        self.odom_excess = -math.inf      # m, largest step beyond what the top speed covers in its stamps' interval
         self.odom_yaw_jump = 0.0          # rad
         self.last_cmd = -1.0              # sim time of the latest cmd_vel
         rospy.Subscriber("diagnostics", DiagnosticArray, self.on_diag, queue_size=20)
@@ -72,11 +75,13 @@ class Drive:
 
     def on_odom(self, m: Odometry) -> None:
         p, q = m.pose.pose.position, m.pose.pose.orientation
-        cur = (p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        cur = (m.header.stamp.to_sec(), p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
         with self.lock:
             if self.odom_prev is not None:
-                self.odom_jump = max(self.odom_jump, math.hypot(cur[0] - self.odom_prev[0], cur[1] - self.odom_prev[1]))
-                self.odom_yaw_jump = max(self.odom_yaw_jump, abs(wrap_angle(cur[2] - self.odom_prev[2])))
+                step = math.hypot(cur[1] - self.odom_prev[1], cur[2] - self.odom_prev[2])
+                self.odom_jump = max(self.odom_jump, step)
+                self.odom_excess = max(self.odom_excess, step - TOP_SPEED * max(cur[0] - self.odom_prev[0], 0.0))
+                self.odom_yaw_jump = max(self.odom_yaw_jump, abs(wrap_angle(cur[3] - self.odom_prev[3])))
             self.odom_prev = cur
 
     def on_cmd(self, _m: Twist) -> None:
@@ -224,6 +229,7 @@ class FaultsDriveTest(unittest.TestCase):
         self.under_way((x0, y0), "table_4")
         with self.drive.lock:
             self.drive.odom_jump = self.drive.odom_yaw_jump = 0.0
+            self.drive.odom_excess = -math.inf
             self.drive.levels.clear()
         for _ in range(3):
             self.fault["emit_garbage"]()
@@ -236,9 +242,14 @@ class FaultsDriveTest(unittest.TestCase):
               f"{self.drive.diag.message!r}", flush=True)
         self.reached("table_4")
         with self.drive.lock:
-            jump, yaw_jump, levels = self.drive.odom_jump, self.drive.odom_yaw_jump, list(self.drive.levels)
-        print(f"[figure] test_3: largest odom step {jump:.3f} m / {yaw_jump:.3f} rad", flush=True)
-        self.assertLess(jump, 0.06, "odometry jumped during the garbage")   # 0.377 m/s top speed at 10 Hz
+            jump, excess = self.drive.odom_jump, self.drive.odom_excess
+            yaw_jump, levels = self.drive.odom_yaw_jump, list(self.drive.levels)
+        print(f"[figure] test_3: largest odom step {jump:.3f} m / {yaw_jump:.3f} rad; at most {excess:+.3f} m "
+              f"beyond {TOP_SPEED} m/s over its stamps' interval", flush=True)
+        # A step is judged against the time its stamps span (diff_tf stamps each encoder line on arrival, 30 Hz):
+        # under load a line can come late and carry several cycles' motion (0.068 m seen in CI, where a fixed
+        # 0.06 m was the bound); any of the garbage read as ticks would jump the odometry by metres.
+        self.assertLess(excess, TOP_SPEED * STAMP_JITTER, "odometry jumped during the garbage")
         self.assertLess(yaw_jump, 0.2, "odometry heading jumped during the garbage")
         self.assertNotIn(DiagnosticStatus.ERROR, [lvl for _, lvl in levels], "the link went ERROR on garbage")
 
