@@ -232,3 +232,67 @@ def test_merge_gains_keeps_the_other_keys():
 def test_merge_gains_refuses_a_corrupt_file(bad):
     with pytest.raises(ValueError, match="fix or remove it"):
         merge_gains(bad, Gains(1, 2))
+
+
+class StallingLink(SimLink):
+    """A busy PC: while ``stalling``, every ``every`` s of the link's clock the PC freezes for ``stall`` s
+    (the board runs on, its lines queue) before it reads again."""
+
+    def __init__(self, board: VirtualBoard, stall: float, every: float) -> None:
+        super().__init__(board)
+        self.stall, self.every, self.stalling, self.next = stall, every, False, -1.0
+
+    def read(self, timeout: float) -> bytes:
+        if self.stalling and self.t >= self.next:
+            for _ in range(round(self.stall / self.dt)):
+                self.board.step(self.dt)
+                self.t += self.dt
+            self.next = self.t + self.every
+        return super().read(timeout)
+
+
+class StallDuringPid(ScriptedUi):
+    """Turns ``link``'s stalls on for the speed-loop steps (the first ``steps`` of them)."""
+
+    def __init__(self, board: VirtualBoard, link: StallingLink, steps: int) -> None:
+        super().__init__(board)
+        self.link, self.steps, self.seen = link, steps, 0
+
+    def say(self, text: str) -> None:
+        super().say(text)
+        if "pid: both wheels" in text or "again (" in text:
+            self.seen += 1
+            self.link.stalling = self.seen <= self.steps
+
+
+def pid_check_on_a_busy_pc(kp: float, stall: float) -> tuple[Report, ScriptedUi]:
+    from chefbot_bringup.wheel_pid import PidConfig
+    with VirtualBoard() as board:
+        link = StallingLink(board, stall, every=0.3)
+        ui = StallDuringPid(board, link, steps=9)
+        try:
+            rep = BringupCheck(link, ui, FAST, pid=PidConfig(ticks_meter=29708.0, max_speed=0.377, kp=kp)).run()
+        finally:
+            link.close()
+    return rep, ui
+
+
+def test_a_failed_speed_step_on_a_busy_pc_is_run_again_and_then_blamed_on_the_pc():
+    """Gains that oscillate (Kp 6000) on a PC that freezes 0.15 s every 0.3 s: the step is run three times
+    and the report says the PC answered late, besides the loops' verdicts; the same gains on an idle PC:
+    one step, the gains blamed alone."""
+    from chefbot_bringup.bringup_procedure import HOST_LAG_MAX, PID_STEP_TRIES
+    rep, ui = pid_check_on_a_busy_pc(6000.0, stall=0.15)
+    assert sum("pid: both wheels" in line or "again (" in line for line in ui.lines) == PID_STEP_TRIES
+    assert ("pid_host_busy", None) in found(rep) and ("pid_oscillates", "left") in found(rep)
+    assert rep.steps[-1].data["host_lag_ms"] > HOST_LAG_MAX * 1000
+    rep, ui = pid_check_on_a_busy_pc(6000.0, stall=0.0)
+    assert sum("pid: both wheels" in line or "again (" in line for line in ui.lines) == 1
+    assert ("pid_oscillates", "left") in found(rep) and ("pid_host_busy", None) not in found(rep)
+    assert rep.steps[-1].data["host_lag_ms"] < HOST_LAG_MAX * 1000
+
+
+def test_a_passing_speed_step_on_a_busy_pc_is_not_run_again():
+    rep, ui = pid_check_on_a_busy_pc(400.0, stall=0.15)
+    assert rep.ok, ui.lines
+    assert not any("again (" in line for line in ui.lines)
