@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import free_port
+from procs import free_port, stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = ROOT / "chefbot_navigation" / "maps"
@@ -221,15 +221,29 @@ def run_process(site: str, name: str, seed: int = 0, only: int | None = None) ->
     cmd = [sys.executable, str(Path(__file__).resolve()), site, name, str(seed)]
     if only is not None:
         cmd.append(f"--only={only}")
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=LEG_TIMEOUT_S + 400, check=False)
-    start = proc.stdout.find("{")
+    # On a timeout the run is asked to stop (SIGTERM: it stops its launch, which is in a session of its own
+    # and would outlive a SIGKILL of the run), and killed only if it does not.
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
+        try:
+            out, err = proc.communicate(timeout=LEG_TIMEOUT_S + 400)
+        except subprocess.TimeoutExpired:
+            proc.terminate()
+            try:
+                out, err = proc.communicate(timeout=90)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                out, err = proc.communicate()
+            raise RuntimeError(f"{' '.join(cmd[1:])} did not finish within {LEG_TIMEOUT_S + 400:.0f} s: "
+                               f"{err[-2000:]}") from None
+    start = out.find("{")
     if proc.returncode not in (0, 1) or start < 0:
-        raise RuntimeError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
-    data = json.loads(proc.stdout[start:])
+        raise RuntimeError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}): {err[-2000:]}")
+    data = json.loads(out[start:])
     return [RobotResult(**r) for r in data["robots"]], data["seconds"], data["wall_seconds"]
 
 
 def main() -> int:
+    stop_on_sigterm()       # SIGTERM unwinds run(): its launch (a session of its own) is stopped, not left running
     args = [a for a in sys.argv[1:] if not a.startswith("--only=") and a != "--keep-logs"]
     only = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--only=")), None)
     if len(args) < 2:
@@ -246,6 +260,9 @@ def main() -> int:
     except (ScenarioError, IndexError) as exc:
         print(f"fleet_scenarios: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("fleet_scenarios: stopped; the launch and its nodes are stopped", file=sys.stderr)
+        return 130
     print(json.dumps({"site": site, "scenario": name, "seed": seed, "seconds": seconds,
                       "wall_seconds": time.monotonic() - w0, "robots": [r.__dict__ for r in robots]}, indent=1))
     return 0 if all(r.arrived or r.parked for r in robots) else 1
