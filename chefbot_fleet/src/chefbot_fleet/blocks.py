@@ -18,10 +18,12 @@ it came (move_base's ``~give_way``), and the pair is not judged again for ``cool
 Chains of three or more are resolved pair by pair.
 
 An **idle robot in the way** -- one without a goal, parked on another's path or goal, or inside a
-single-lane zone another robot waits for -- never moves by itself.  It *makes room* at once when it
-stands on a robot's goal (the plan ends within the two radii plus ``clearance`` of it) or holds the
-zone a robot is held for; when a robot with a goal has stood still for ``stall_time`` s with an idle
-one within the first ``look_ahead`` m of its plan, too.  :func:`room_spot` picks the nearest free
+single-lane zone another robot waits for -- never moves by itself.  It *makes room* when it has
+stood on a robot's goal (the plan ends within the two radii plus ``clearance`` of it) or held the
+zone a robot is held for for ``idle_confirm`` s (not at the first sight: two robots given goals at
+once, one on the other's start, show one plan before the other), whether or not that robot has
+stopped yet; when a robot with a goal has stood still for ``stall_time`` s with an idle one within
+the first ``look_ahead`` m of its plan, too.  :func:`room_spot` picks the nearest free
 spot it can reach -- past the other robots' bodies, not through them -- that is outside every zone
 and clear of every other robot and of their plans, and the caller sends it there.  With no such spot
 only because a robot waiting for a zone stands in the way out (at the mouth of the aisle the idle
@@ -56,9 +58,12 @@ class BlockConfig:
     robot_radius: float = 0.22          # m, the robots' circumscribed radius (ChefBot's URDF footprint: 0.223)
     room_margin: float = 0.10           # m kept free around a make-room spot beyond the robot's radius
     room_distance: float = 3.0          # m, the farthest make-room spot considered (straight line)
+    idle_confirm: float = 2.0           # s an idle robot must stay on a robot's goal or in the zone it is held
+                                        # for before it is sent off (a goal just given to it shows within this)
 
     def __post_init__(self) -> None:
-        for name in ("stall_time", "stall_distance", "look_ahead", "cooldown", "robot_radius", "room_distance"):
+        for name in ("stall_time", "stall_distance", "look_ahead", "cooldown", "robot_radius", "room_distance",
+                     "idle_confirm"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not self.clearance >= 0.0:
@@ -209,6 +214,7 @@ class BlockDetector:
         self.resolved: dict[frozenset[str], float] = {}
         self.last: Block | None = None          # the latest block resolved (diagnostics)
         self.count = 0                          # blocks resolved so far
+        self.idle_seen: dict[tuple[str, str], float] = {}   # (idle, other) -> since when it is on its goal / zone
 
     def retry(self, block: Block, t: float, after: float) -> None:
         """``block`` could not be resolved at ``t`` (no spot to make room at yet): its pair is judged again
@@ -281,19 +287,23 @@ class BlockDetector:
         # stalled one: it makes room
         idle = {r.name: r for r in robots if not len(r.path)}
         waits = {(r, h) for r, h in zone_waits if h in idle}
+        seen: set[tuple[str, str]] = set()
         for b in robots:
             if not len(b.path):
                 continue
             stood = self.stalled_for(b.name, t)
             for a in idle.values():
+                zone = (b.name, a.name) in waits
+                where = "zone" if zone and b.held else "goal" if on_its_goal(b, a, c.clearance) else ""
+                if where:       # at once -- once it has stayed so idle_confirm s (two goals given together)
+                    seen.add((a.name, b.name))
+                    since = self.idle_seen.setdefault((a.name, b.name), t)
+                    if judged(a, b) and t - since >= c.idle_confirm:
+                        resolve(Block(a.name, b.name, stood, idle=True, where=where))
+                    continue
                 if not judged(a, b):
                     continue
-                zone = (b.name, a.name) in waits
-                if zone and b.held:
-                    resolve(Block(a.name, b.name, stood, idle=True, where="zone"))
-                elif on_its_goal(b, a, c.clearance):
-                    resolve(Block(a.name, b.name, stood, idle=True, where="goal"))
-                elif stood >= c.stall_time and (zone or (not b.held and in_the_way(b, a, c.look_ahead,
-                                                                                   c.clearance))):
+                if stood >= c.stall_time and (zone or (not b.held and in_the_way(b, a, c.look_ahead, c.clearance))):
                     resolve(Block(a.name, b.name, stood, idle=True))
+        self.idle_seen = {k: v for k, v in self.idle_seen.items() if k in seen}
         return blocks

@@ -126,34 +126,58 @@ def test_an_idle_robot_holding_the_zone_another_waits_for_makes_room() -> None:
     assert [(bl.yielder, bl.other, bl.idle) for bl in blocks] == [("chefbot2", "chefbot1", True)]
 
 
-def test_an_idle_robot_on_a_robots_goal_or_in_the_zone_it_is_held_for_makes_room_at_once() -> None:
-    det = BlockDetector(BlockConfig(stall_time=5.0))
+def test_an_idle_robot_on_a_robots_goal_or_in_the_zone_it_is_held_for_makes_room_after_idle_confirm() -> None:
+    """Not after stall_time (the other robot need not stop first), but once it has stayed so idle_confirm s."""
+    cfg = BlockConfig(stall_time=5.0, idle_confirm=2.0)
+    det = BlockDetector(cfg)
     a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 3.0))                # driving, not stalled
     b = RobotView("chefbot2", 3.0, 0.3, 0.2)                                # idle, 0.3 m from a's goal
-    blocks = det.update(0.0, [a, b])
-    assert [(bl.yielder, bl.other, bl.idle, bl.where) for bl in blocks] == [("chefbot2", "chefbot1", True, "goal")]
-    assert "chefbot2 stands idle on chefbot1's goal" in blocks[0].text()
+    blocks = []
+    for t in np.arange(0.0, 2.5, 0.1):
+        a.x = 0.3 * t
+        blocks += [(float(t), bl) for bl in det.update(float(t), [a, b])]
+    assert [(bl.yielder, bl.other, bl.idle, bl.where) for _, bl in blocks] == [("chefbot2", "chefbot1", True, "goal")]
+    assert blocks[0][0] == pytest.approx(2.0, abs=0.11)
+    assert "chefbot2 stands idle on chefbot1's goal" in blocks[0][1].text()
     b.y = 0.6                                                               # beside the goal: not asked
-    assert BlockDetector(BlockConfig()).update(0.0, [a, b]) == []
-    det = BlockDetector(BlockConfig(stall_time=5.0))
+    assert run(BlockDetector(cfg), [a, b], 0.0, 3.0) == []
+    det = BlockDetector(cfg)
     a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 5.0), held=True)
     b = RobotView("chefbot2", 4.0, 0.0, 0.2)
-    blocks = det.update(0.0, [a, b], zone_waits=[("chefbot1", "chefbot2")])
+    blocks = [bl for t in np.arange(0.0, 2.5, 0.1) for bl in det.update(float(t), [a, b], [("chefbot1", "chefbot2")])]
     assert [(bl.yielder, bl.where) for bl in blocks] == [("chefbot2", "zone")]
     assert "chefbot2 stands idle in the zone chefbot1 waits for" in blocks[0].text()
     a.held = False                  # asked for the zone but not yet at its apron: only after stall_time
-    assert BlockDetector(BlockConfig()).update(0.0, [a, b], zone_waits=[("chefbot1", "chefbot2")]) == []
+    det = BlockDetector(cfg)
+    assert [bl for t in np.arange(0.0, 4.0, 0.1) for bl in det.update(float(t), [a, b], [("chefbot1", "chefbot2")])
+            ] == []
+
+
+def test_two_robots_given_goals_together_one_on_the_others_start_neither_is_sent_off() -> None:
+    """chefbot2's plan shows first and ends where chefbot1 stands; chefbot1's own goal shows 0.5 s later:
+    chefbot1 is not sent off (a make-room goal would replace the goal it was given)."""
+    det = BlockDetector(BlockConfig(idle_confirm=2.0))
+    a = RobotView("chefbot1", 3.0, 0.0, 0.2)
+    b = RobotView("chefbot2", 0.0, 0.0, 0.2, line(0.0, 3.0))
+    out = []
+    for t in np.arange(0.0, 5.0, 0.1):
+        if t >= 0.5:
+            a.path = line(3.0, 6.0)
+            a.x = 3.0 + 0.3 * (t - 0.5)
+        out += det.update(float(t), [a, b])
+    assert out == []
 
 
 def test_a_block_not_resolved_now_is_judged_again_after_the_retry_time() -> None:
-    det = BlockDetector(BlockConfig(stall_time=5.0, cooldown=15.0))
+    det = BlockDetector(BlockConfig(stall_time=5.0, cooldown=15.0, idle_confirm=0.1))
     a = RobotView("chefbot1", 0.0, 0.0, 0.2, line(0.0, 3.0))
     b = RobotView("chefbot2", 3.0, 0.0, 0.2)
-    (block,) = det.update(0.0, [a, b])
-    det.retry(block, 0.0, 1.0)
+    assert det.update(0.0, [a, b]) == []
+    (block,) = det.update(0.1, [a, b])
+    det.retry(block, 0.1, 1.0)
     assert det.count == 0
-    assert det.update(0.5, [a, b]) == []
-    assert len(det.update(1.0, [a, b])) == 1 and det.count == 1
+    assert det.update(0.6, [a, b]) == []
+    assert len(det.update(1.1, [a, b])) == 1 and det.count == 1
 
 
 RES = 0.05
