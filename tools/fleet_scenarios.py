@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import free_port, stop_on_sigterm
+from procs import free_port, run_captured, stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = ROOT / "chefbot_navigation" / "maps"
@@ -221,24 +221,13 @@ def run_process(site: str, name: str, seed: int = 0, only: int | None = None) ->
     cmd = [sys.executable, str(Path(__file__).resolve()), site, name, str(seed)]
     if only is not None:
         cmd.append(f"--only={only}")
-    # On a timeout the run is asked to stop (SIGTERM: it stops its launch, which is in a session of its own
-    # and would outlive a SIGKILL of the run), and killed only if it does not.
-    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as proc:
-        try:
-            out, err = proc.communicate(timeout=LEG_TIMEOUT_S + 400)
-        except subprocess.TimeoutExpired:
-            proc.terminate()
-            try:
-                out, err = proc.communicate(timeout=90)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                out, err = proc.communicate()
-            raise RuntimeError(f"{' '.join(cmd[1:])} did not finish within {LEG_TIMEOUT_S + 400:.0f} s: "
-                               f"{err[-2000:]}") from None
-    start = out.find("{")
+    # its own session, stopped with what it started on a timeout or an interrupt (SIGINT first: the run unwinds
+    # and stops its launch, which is in a session of its own and would outlive a SIGKILL of the run)
+    proc = run_captured(cmd, LEG_TIMEOUT_S + 400)
+    start = proc.stdout.find("{")
     if proc.returncode not in (0, 1) or start < 0:
-        raise RuntimeError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}): {err[-2000:]}")
-    data = json.loads(out[start:])
+        raise RuntimeError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
+    data = json.loads(proc.stdout[start:])
     return [RobotResult(**r) for r in data["robots"]], data["seconds"], data["wall_seconds"]
 
 
