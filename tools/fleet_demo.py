@@ -64,6 +64,15 @@ def say(msg: str) -> None:
     print(f"[demo] {msg}", flush=True)
 
 
+def shown(path: Path) -> str:
+    """``path`` as the progress lines show it: relative to the workspace when inside it, else whole
+    (``CHEFBOT_DEMO_DIR`` may be any directory, e.g. a benchmark's temporary one)."""
+    try:
+        return str(path.relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
 def order_stream(tables: list[str], count: int, every_s: float, seed: int) -> list[tuple[float, list[str]]]:
     """``count`` orders of one or two distinct ``tables`` (uniform), at Poisson arrival times with mean
     gap ``every_s`` s, the first at 0: [(t, tables)], seeded."""
@@ -329,10 +338,10 @@ def main() -> int:
                f"fleet_file:={Path(files['fleet']).resolve()}", f"tables_file:={Path(files['tables']).resolve()}",
                "required:=false"]
     if gui:
-        say(f"the fleet window shows the robots and the queue (log: {(LOG_DIR / 'fleet_gui.log').relative_to(ROOT)}); "
+        say(f"the fleet window shows the robots and the queue (log: {shown(LOG_DIR / 'fleet_gui.log')}); "
             "staff's orders placed in it are served too, but only the stream's are judged")
     say(f"starting {len(robots)} robots in one simulated {Path(files['world']).stem} ({cfg['drive']} drive; "
-        f"master {uri}, real-time factor {cfg['rtf']}) and the dispatcher; log: {log.relative_to(ROOT)}")
+        f"master {uri}, real-time factor {cfg['rtf']}) and the dispatcher; log: {shown(log)}")
     say(f"the order stream: {len(cfg['stream'])} orders of one or two tables over {cfg['stream'][-1][0]:.0f} s "
         "of sim time (seeded)")
     with ProcessGroup(["roscore", "-p", str(port)], env=env, log=LOG_DIR / "roscore.log"), \
@@ -388,7 +397,7 @@ def run_stream(cfg: dict, robots: list, names: list[str], launch, log: Path) -> 
     out.write_text(json.dumps({"real_time_factor": cfg["rtf"], "wall_seconds": wall_s, "summary": figures,
                                "bumper_contacts": watch.bumps, "metres": metres, "served_twice": served_twice,
                                "lost": lost, "parked": parked, "orders": results}, indent=2) + "\n")
-    say(f"results: {out.relative_to(ROOT)}")
+    say(f"results: {shown(out)}")
     say(f"back at their parking poses: {parked}/{len(robots)}; bumper contacts: {bumps}")
     say(f"delivered {figures['delivered']}/{figures['orders']} orders with {len(robots)} robots in "
         f"{figures['makespan_s']:.1f} s (sim time; {wall_s:.1f} s wall): {figures['orders_per_hour']:.1f} orders/h, "

@@ -66,7 +66,10 @@ def run_stream(robots: int, policy: str, orders: int, every: float, seed: int) -
             if line.startswith("[demo] delivered") or "ERROR" in line:
                 print(f"[bench] fleet_stream {robots} robot(s), {policy}: {line[7:]}", flush=True)
         path = Path(tmp) / "fleet.json"
-        if not path.is_file():
+        if not path.is_file():          # the run died before its summary: show why, count every order lost
+            tail = "\n".join(out.splitlines()[-20:])
+            print(f"[bench] fleet_stream {robots} robot(s), {policy}: no summary (exit {code}); "
+                  f"its last lines:\n{tail}", flush=True)
             return {"exit": code, "orders": orders, "delivered": 0, "lost": orders, "served_twice": 0,
                     "contacts": 0}
         summary = json.loads(path.read_text())["summary"]

@@ -10,7 +10,8 @@ alone in the site. Per scenario: arrivals (goal all), bumper contacts (goal 0; t
 truth, a test oracle), robots that did not arrive within the leg timeout or aborted (a deadlock shows
 here), the time each robot lost to the others (its time minus its time alone; median and worst over
 robots and seeds) and the run's sim seconds per wall second (three full stacks on two cores may run
-below real time; every result is judged in sim time).
+below real time; every result is judged in sim time). ``CHEFBOT_FLEET_SITES`` (comma-separated, default
+all) limits the run to some sites, e.g. ``cafe``.
 """
 from __future__ import annotations
 
@@ -27,8 +28,13 @@ def run(quick: bool = False) -> list[dict]:
     import fleet_scenarios as fs
 
     seeds = 1 if quick else int(os.environ.get("CHEFBOT_FLEET_SEEDS", "20"))
+    sites = [s for s in os.environ.get("CHEFBOT_FLEET_SITES", "").split(",") if s] or list(fs.SCENARIOS)
+    unknown = [s for s in sites if s not in fs.SCENARIOS]
+    if unknown:
+        raise ValueError(f"CHEFBOT_FLEET_SITES: unknown site(s) {unknown}; known: {sorted(fs.SCENARIOS)}")
     rows = []
-    for site, scenarios in fs.SCENARIOS.items():
+    for site in sites:
+        scenarios = fs.SCENARIOS[site]
         for name, legs in scenarios.items():
             case = f"{site} {name} ({len(legs)} robots, {seeds} seed{'s' if seeds > 1 else ''})"
             alone = []

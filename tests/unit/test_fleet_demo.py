@@ -78,3 +78,10 @@ def test_the_hotel_default_is_one_order_per_table_on_average(monkeypatch: pytest
     assert [r.name for r in cfg["robots"]] == ["chefbot1", "chefbot2", "chefbot3"]
     assert len(cfg["stream"]) == 9 and cfg["drive"] == "plugin"
     assert {t for _, ts in cfg["stream"] for t in ts} <= {f"table_{i}" for i in range(1, 10)}
+
+
+def test_paths_outside_the_workspace_are_shown_whole(tmp_path: Path) -> None:
+    # bench_fleet_stream runs the demo with CHEFBOT_DEMO_DIR in /tmp: its progress lines must not crash
+    from fleet_demo import ROOT, shown
+    assert shown(ROOT / "build" / "demo" / "fleet.json") == "build/demo/fleet.json"
+    assert shown(tmp_path / "roslaunch.log") == str(tmp_path / "roslaunch.log")
