@@ -11,14 +11,16 @@ reference and their ratio; all rows go to ``bench-results/bench-<UTC time>.json`
 and ``bench-results/latest.json``, with the run's facts (date, commit, machine,
 total time) under ``meta``.
 
-A full run (no ``--quick``, no ``-k``) also writes ``docs/benchmarks.md``
-(tools/bench_report.py).  A quick or ``-k`` run leaves that page alone, so a
-partial run never replaces the full report; ``--report`` writes it anyway
-(the page then says it is a quick / partial run).
-``python tools/bench_report.py bench-results/latest.json`` rebuilds the page
-from a stored JSON without running anything.
+Every run that is not ``--quick`` then merges its figures into ``docs/benchmarks.json``
+and rewrites ``docs/benchmarks.md`` (tools/bench_report.py): the sections of the
+benchmarks it ran are replaced, each with this run's date, commit and settings, and
+the others stay as they were, so ``-k NAME`` refreshes one benchmark that takes
+hours without dropping the rest.  A ``--quick`` run (a smoke run) leaves both alone
+unless given ``--report``; ``--no-report`` leaves them alone for any run.  The
+settings recorded are the ``CHEFBOT_*`` environment variables of the run (e.g.
+``CHEFBOT_FLEET_SEEDS``).
 
-Usage:  python tools/bench.py [--quick] [-k SUBSTRING] [--report]
+Usage:  python tools/bench.py [--quick] [-k SUBSTRING] [--report | --no-report]
 """
 from __future__ import annotations
 
@@ -33,7 +35,7 @@ import time
 import traceback
 from pathlib import Path
 
-from bench_report import REPORT, collect_meta, write_report  # tools/ is this script's directory
+from bench_report import REPORT, STORE, collect_meta, write_report  # tools/ is this script's directory
 from procs import stop_on_sigterm
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -83,8 +85,11 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
     ap.add_argument("-k", dest="pattern", help="only benchmark files whose path contains this")
-    ap.add_argument("--report", action="store_true",
-                    help=f"write {REPORT.relative_to(ROOT)} even for a --quick or -k run")
+    report = ap.add_mutually_exclusive_group()
+    report.add_argument("--report", action="store_true",
+                        help=f"merge into {STORE.relative_to(ROOT)} and {REPORT.relative_to(ROOT)} "
+                             "even for a --quick run")
+    report.add_argument("--no-report", action="store_true", help="leave both alone")
     args = ap.parse_args()
 
     files = [p for p in discover() if not args.pattern or args.pattern in str(p)]
@@ -95,11 +100,14 @@ def main() -> int:
     errors = 0
     failed: list[str] = []
     sources: dict[str, str] = {}
+    file_seconds: dict[str, float] = {}
     meta = collect_meta()  # the commit and tree state the run starts from
+    meta["settings"] = {k: v for k, v in sorted(os.environ.items()) if k.startswith("CHEFBOT_")}
     t0 = time.monotonic()
     for path in files:
         rel = path.relative_to(ROOT)
         print(f"[bench] {rel} ...", flush=True)
+        t_file = time.monotonic()
         try:
             got = load(path).run(quick=args.quick)
         except Exception:  # noqa: BLE001 - one broken benchmark must not hide the others' figures
@@ -107,6 +115,8 @@ def main() -> int:
             errors += 1
             failed.append(str(rel))
             continue
+        finally:
+            file_seconds[str(rel)] = round(time.monotonic() - t_file, 1)
         for r in got:
             missing = [k for k in ("bench", "case", "metric", "ours") if k not in r]
             if missing:
@@ -121,18 +131,24 @@ def main() -> int:
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     seconds = round(time.monotonic() - t0, 1)
     meta.update(seconds=seconds, quick=args.quick, pattern=args.pattern, failed=failed, sources=sources,
-                load_end=round(os.getloadavg()[0], 2))
+                file_seconds=file_seconds, load_end=round(os.getloadavg()[0], 2))
     doc = {"time_utc": stamp, "host": platform.node(), "python": platform.python_version(),
            "quick": args.quick, "seconds": seconds, "meta": meta, "rows": rows}
     for name in (f"bench-{stamp}.json", "latest.json"):
         (OUT / name).write_text(json.dumps(doc, indent=2) + "\n")
     print(f"\n[bench] {len(rows)} figures from {len(files)} benchmarks in {doc['seconds']} s; "
           f"JSON: {(OUT / 'latest.json').relative_to(ROOT)}; {errors} errors")
-    if args.report or not (args.quick or args.pattern):
-        page = write_report(doc, source_json=str((OUT / f"bench-{stamp}.json").relative_to(ROOT)))
-        print(f"[bench] report: {page.relative_to(ROOT)}")
+    if args.no_report or (args.quick and not args.report):
+        print(f"[bench] {REPORT.relative_to(ROOT)} left as it is "
+              f"({'--no-report' if args.no_report else 'quick run; --report merges it'})")
     else:
-        print(f"[bench] {REPORT.relative_to(ROOT)} left as it is (quick or -k run; --report writes it)")
+        existing = {str(p.relative_to(ROOT)) for p in discover()}
+        try:
+            page = write_report(doc, existing_sources=existing)
+        except ValueError as exc:   # a corrupt store: say so, keep it for the user to look at
+            print(f"[bench] {STORE.relative_to(ROOT)} not updated: {exc}")
+            return 1
+        print(f"[bench] merged into {STORE.relative_to(ROOT)}; report: {page.relative_to(ROOT)}")
     return 1 if errors else 0
 
 

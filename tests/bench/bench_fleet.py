@@ -10,8 +10,9 @@ alone in the site. Per scenario: arrivals (goal all), bumper contacts (goal 0; t
 truth, a test oracle), robots that did not arrive within the leg timeout or aborted (a deadlock shows
 here), the time each robot lost to the others (its time minus its time alone; median and worst over
 robots and seeds) and the run's sim seconds per wall second (three full stacks on two cores may run
-below real time; every result is judged in sim time). ``CHEFBOT_FLEET_SITES`` (comma-separated, default
-all) limits the run to some sites, e.g. ``cafe``.
+below real time; every result is judged in sim time). Each site is its own section of the report
+(``fleet hotel``, ``fleet cafe``), so ``CHEFBOT_FLEET_SITES`` (comma-separated, default all; e.g.
+``cafe``) reruns one site and keeps the other's figures.
 """
 from __future__ import annotations
 
@@ -36,7 +37,8 @@ def run(quick: bool = False) -> list[dict]:
     for site in sites:
         scenarios = fs.SCENARIOS[site]
         for name, legs in scenarios.items():
-            case = f"{site} {name} ({len(legs)} robots, {seeds} seed{'s' if seeds > 1 else ''})"
+            bench = f"fleet {site}"
+            case = f"{name} ({len(legs)} robots, {seeds} seed{'s' if seeds > 1 else ''})"
             alone = []
             for i, (_, goal) in enumerate(legs):
                 if goal is None:        # a parked robot: nothing to time alone
@@ -60,22 +62,22 @@ def run(quick: bool = False) -> list[dict]:
                             lost.append(r.seconds - solo)
                     else:
                         failures.append(f"{r.name} seed {seed}: {r.state} {r.text}")
-                print(f"[bench] fleet {case} seed {seed}: " + "; ".join(
+                print(f"[bench] {bench} {case} seed {seed}: " + "; ".join(
                     f"{r.name} {r.state} {r.seconds:.1f} s, {r.bumps} bumps" for r in robots), flush=True)
             for f in failures:
-                print(f"[bench] fleet {case}: not arrived: {f}", flush=True)
+                print(f"[bench] {bench} {case}: not arrived: {f}", flush=True)
             rows += [
-                {"bench": "fleet", "case": case, "metric": "robots arrived", "ours": arrived, "reference": total,
+                {"bench": bench, "case": case, "metric": "robots arrived", "ours": arrived, "reference": total,
                  "reference_name": "robots sent", "goal": f"{total}/{total}", "met": arrived == total},
-                {"bench": "fleet", "case": case, "metric": "bumper contacts", "ours": contacts, "reference": None,
+                {"bench": bench, "case": case, "metric": "bumper contacts", "ours": contacts, "reference": None,
                  "reference_name": None, "goal": "0", "met": contacts == 0},
-                {"bench": "fleet", "case": case, "metric": "s lost to the others, median", "ours":
+                {"bench": bench, "case": case, "metric": "s lost to the others, median", "ours":
                  statistics.median(lost) if lost else None, "reference": statistics.median(
                      [a for a in alone if a is not None]) if any(a is not None for a in alone) else None,
                  "reference_name": "s alone (median leg)", "goal": None, "met": None},
-                {"bench": "fleet", "case": case, "metric": "s lost to the others, worst", "ours":
+                {"bench": bench, "case": case, "metric": "s lost to the others, worst", "ours":
                  max(lost) if lost else None, "reference": None, "reference_name": None, "goal": None, "met": None},
-                {"bench": "fleet", "case": case, "metric": "sim s per wall s", "ours": min(rtfs),
+                {"bench": bench, "case": case, "metric": "sim s per wall s", "ours": min(rtfs),
                  "reference": 1.0, "reference_name": "asked", "goal": None, "met": None},
             ]
     return rows
