@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from procs import free_port, run_captured, stop_on_sigterm
+from procs import free_port, run_captured, stop_on_sigterm, tree_cpu
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = ROOT / "chefbot_navigation" / "maps"
@@ -91,6 +91,17 @@ class RobotResult:
         return self.state == "PARKED"
 
 
+@dataclass
+class Drive:
+    """A run from the goals to the last result: every robot's leg, the sim and wall seconds it took, and
+    the CPU seconds spent meanwhile by each robot's stack, the simulator and the rest (:func:`cpu_by_part`)."""
+
+    robots: list[RobotResult]
+    seconds: float
+    wall_seconds: float
+    cpu: dict[str, float]
+
+
 def check_poses(site: str, legs) -> None:
     """ScenarioError naming every start or goal that is not CLEARANCE m clear of the map's obstacles."""
     import numpy as np
@@ -125,10 +136,11 @@ def scenario(site: str, name: str):
 
 
 def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, log_dir: Path | None = None,
-        keep_logs: bool = False) -> tuple[list[RobotResult], float]:
-    """Run ``legs`` [(start, goal)] at once in ``site``; the robots' results and the sim seconds until the
-    last result.  The launch and its nodes are stopped before it returns.  The run's logs are kept (their
-    directory named on stderr) when a robot failed or touched something, or with ``keep_logs``."""
+        keep_logs: bool = False) -> Drive:
+    """Run ``legs`` [(start, goal)] at once in ``site``; the robots' results, the sim and wall seconds
+    until the last result and the CPU spent meanwhile.  The launch and its nodes are stopped before it
+    returns.  The run's logs are kept (their directory named on stderr) when a robot failed or touched
+    something, or with ``keep_logs``."""
     check_poses(site, legs)
     world, map_file = SITES[site]
     names = [f"chefbot{i + 1}" for i in range(len(legs))]
@@ -149,9 +161,9 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     keep = True     # the run's logs stay (printed) unless every robot arrived (or stayed parked) without contact
     try:
-        robots, seconds = _drive(names, legs, launch, tmp)
-        keep = keep_logs or not all((r.arrived or r.parked) and r.bumps == 0 for r in robots)
-        return robots, seconds
+        drive = _drive(names, legs, launch, tmp)
+        keep = keep_logs or not all((r.arrived or r.parked) and r.bumps == 0 for r in drive.robots)
+        return drive
     finally:
         try:
             os.killpg(launch.pid, 2)
@@ -164,7 +176,7 @@ def run(site: str, legs, seed: int = 0, traffic: bool = True, rtf: float = 1.0, 
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _drive(names, legs, launch, tmp: Path) -> tuple[list[RobotResult], float]:
+def _drive(names, legs, launch, tmp: Path) -> Drive:
     import rosgraph
     import rospy
     from delivery import DeliveryClient
@@ -199,25 +211,41 @@ def _drive(names, legs, launch, tmp: Path) -> tuple[list[RobotResult], float]:
         return p.x, p.y
 
     parked = {i: (pose_now(clients[i]), clients[i].bumps) for i, (_, goal) in enumerate(legs) if goal is None}
-    t0 = rospy.get_time()
+    cpu0, w0, t0 = tree_cpu(launch.pid), time.monotonic(), rospy.get_time()
     threads = [threading.Thread(target=go, args=(i,), daemon=True) for i in range(len(names)) if i not in parked]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    seconds = rospy.get_time() - t0
+    seconds, wall = rospy.get_time() - t0, time.monotonic() - w0
+    cpu = cpu_by_part(cpu0, tree_cpu(launch.pid), names)
     for i, ((x0, y0), bumps0) in parked.items():
         x, y = pose_now(clients[i])
         moved = math.hypot(x - x0, y - y0)
         results[names[i]] = RobotResult(names[i], "PARKED", f"no goal; moved {moved:.2f} m", 0.0, moved,
                                         clients[i].bumps - bumps0)
-    return [results[n] for n in names], seconds
+    return Drive([results[n] for n in names], seconds, wall, cpu)
 
 
-def run_process(site: str, name: str, seed: int = 0, only: int | None = None) -> tuple[list[RobotResult], float,
-                                                                                        float]:
-    """One run in a process of its own (rospy joins one master per process): the robots' results, the sim
-    seconds and the wall seconds of the drive.  ``only``: that robot's leg alone (index)."""
+def cpu_by_part(before: dict[int, tuple[str, float]], after: dict[int, tuple[str, float]],
+                names: list[str]) -> dict[str, float]:
+    """CPU seconds spent between two :func:`procs.tree_cpu` readings, by part: each robot's stack (its
+    nodes, namespaced ``NAME-``), ``sim`` (the simulator) and ``rest`` (master, rosout, map_server,
+    traffic, roslaunch).  A process that started in between counts from 0; one that ended is missing
+    from ``after`` and counts nothing (none should, while the robots drive)."""
+    parts = dict.fromkeys([*names, "sim", "rest"], 0.0)
+    for pid, (label, secs) in after.items():
+        spent = secs - (before[pid][1] if pid in before and before[pid][0] == label else 0.0)
+        part = next((n for n in names if label.startswith(f"{n}-")), None)
+        if part is None:
+            part = "sim" if label.startswith("chefbot_sim") else "rest"
+        parts[part] += max(spent, 0.0)
+    return parts
+
+
+def run_process(site: str, name: str, seed: int = 0, only: int | None = None) -> Drive:
+    """One run in a process of its own (rospy joins one master per process).  ``only``: that robot's leg
+    alone (index)."""
     cmd = [sys.executable, str(Path(__file__).resolve()), site, name, str(seed)]
     if only is not None:
         cmd.append(f"--only={only}")
@@ -228,7 +256,7 @@ def run_process(site: str, name: str, seed: int = 0, only: int | None = None) ->
     if proc.returncode not in (0, 1) or start < 0:
         raise RuntimeError(f"{' '.join(cmd[1:])} failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
     data = json.loads(proc.stdout[start:])
-    return [RobotResult(**r) for r in data["robots"]], data["seconds"], data["wall_seconds"]
+    return Drive([RobotResult(**r) for r in data["robots"]], data["seconds"], data["wall_seconds"], data["cpu"])
 
 
 def main() -> int:
@@ -244,17 +272,17 @@ def main() -> int:
         legs = scenario(site, name)
         if only is not None:
             legs = [legs[only]]
-        w0 = time.monotonic()
-        robots, seconds = run(site, legs, seed, keep_logs="--keep-logs" in sys.argv[1:])
+        drive = run(site, legs, seed, keep_logs="--keep-logs" in sys.argv[1:])
     except (ScenarioError, IndexError) as exc:
         print(f"fleet_scenarios: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("fleet_scenarios: stopped; the launch and its nodes are stopped", file=sys.stderr)
         return 130
-    print(json.dumps({"site": site, "scenario": name, "seed": seed, "seconds": seconds,
-                      "wall_seconds": time.monotonic() - w0, "robots": [r.__dict__ for r in robots]}, indent=1))
-    return 0 if all(r.arrived or r.parked for r in robots) else 1
+    print(json.dumps({"site": site, "scenario": name, "seed": seed, "seconds": drive.seconds,
+                      "wall_seconds": drive.wall_seconds, "cpu": drive.cpu,
+                      "robots": [r.__dict__ for r in drive.robots]}, indent=1))
+    return 0 if all(r.arrived or r.parked for r in drive.robots) else 1
 
 
 if __name__ == "__main__":

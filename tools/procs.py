@@ -85,6 +85,32 @@ def group_tree(pgid: int) -> dict[int, str]:
     return {pid: start for pid, start in tree.items() if table[pid][0] not in ("Z", "X")}
 
 
+def node_label(argv: list[str], comm: str) -> str:
+    """A process's name for accounting: a ROS node's log name as roslaunch gives it (``__log:=.../
+    chefbot1-amcl-5.log`` -> ``chefbot1-amcl-5``: its namespace and name), else its command name."""
+    for arg in argv:
+        if arg.startswith("__log:="):
+            return Path(arg.split(":=", 1)[1]).stem
+    return comm
+
+
+def tree_cpu(pgid: int) -> dict[int, tuple[str, float]]:
+    """CPU seconds (user + system) so far of every live process of :func:`group_tree`: pid -> (label
+    (:func:`node_label`), seconds).  Two calls' difference is what each process spent in between."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {}
+    for pid in group_tree(pgid):
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace").split("\0")
+        except OSError:     # ended in between
+            continue
+        rest = stat[stat.rfind(")") + 2:].split()      # fields 3 on: utime and stime are fields 14 and 15
+        comm = stat[stat.find("(") + 1:stat.rfind(")")]
+        out[pid] = (node_label(argv, comm), (int(rest[11]) + int(rest[12])) / tick)
+    return out
+
+
 def _survivors(tracked: dict[int, str]) -> list[int]:
     """The tracked processes still alive (same pid *and* start time: no reused pid)."""
     table = _proc_table()

@@ -9,8 +9,10 @@ time per run, so some 2.5 h for the eight scenarios). Each robot's leg is also r
 alone in the site. Per scenario: arrivals (goal all), bumper contacts (goal 0; the simulator's ground
 truth, a test oracle), robots that did not arrive within the leg timeout or aborted (a deadlock shows
 here), the time each robot lost to the others (its time minus its time alone; median and worst over
-robots and seeds) and the run's sim seconds per wall second (three full stacks on two cores may run
-below real time; every result is judged in sim time). Each site is its own section of the report
+robots and seeds), and what the stacks cost while the robots drive: the slowest run's sim seconds per
+wall second (three full stacks on two cores may run below real time; every result is judged in sim
+time) and the CPU seconds per sim second of each robot's stack and of the simulator, for one robot (each
+leg alone), two and three. Each site is its own section of the report
 (``fleet hotel``, ``fleet cafe``), so ``CHEFBOT_FLEET_SITES`` (comma-separated, default all; e.g.
 ``cafe``) reruns one site and keeps the other's figures.
 """
@@ -25,6 +27,24 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 
+def _speed_rows(bench: str, case: str, drives, names_of) -> list[dict]:
+    """Sim s per wall s (the slowest run) and CPU s per sim s of each robot stack and of the simulator
+    (means over the runs) while the robots drove: what 1, 2 or 3 full stacks cost on this machine."""
+    rtf = min(d.seconds / max(d.wall_seconds, 1e-9) for d in drives)
+    stack = statistics.mean(d.cpu[n] / max(d.seconds, 1e-9) for d in drives for n in names_of(d))
+    sim = statistics.mean(d.cpu["sim"] / max(d.seconds, 1e-9) for d in drives)
+    rest = statistics.mean(d.cpu["rest"] / max(d.seconds, 1e-9) for d in drives)
+    return [
+        {"bench": bench, "case": case, "metric": "sim s per wall s (slowest run)", "ours": rtf, "reference": 1.0,
+         "reference_name": "asked", "goal": None, "met": None},
+        {"bench": bench, "case": case, "metric": "CPU s per sim s, each robot's stack", "ours": stack,
+         "reference": None, "reference_name": None, "goal": None, "met": None},
+        {"bench": bench, "case": case, "metric": "CPU s per sim s, the simulator", "ours": sim,
+         "reference": rest, "reference_name": "master, map_server, traffic, roslaunch", "goal": None,
+         "met": None},
+    ]
+
+
 def run(quick: bool = False) -> list[dict]:
     import fleet_scenarios as fs
 
@@ -35,23 +55,24 @@ def run(quick: bool = False) -> list[dict]:
         raise ValueError(f"CHEFBOT_FLEET_SITES: unknown site(s) {unknown}; known: {sorted(fs.SCENARIOS)}")
     rows = []
     for site in sites:
-        scenarios = fs.SCENARIOS[site]
-        for name, legs in scenarios.items():
-            bench = f"fleet {site}"
+        bench = f"fleet {site}"
+        solo_drives = []
+        for name, legs in fs.SCENARIOS[site].items():
             case = f"{name} ({len(legs)} robots, {seeds} seed{'s' if seeds > 1 else ''})"
             alone = []
             for i, (_, goal) in enumerate(legs):
                 if goal is None:        # a parked robot: nothing to time alone
                     alone.append(None)
                     continue
-                robots, _, _ = fs.run_process(site, name, seed=0, only=i)
-                alone.append(robots[0].seconds if robots[0].arrived else None)
+                solo = fs.run_process(site, name, seed=0, only=i)
+                solo_drives.append(solo)
+                alone.append(solo.robots[0].seconds if solo.robots[0].arrived else None)
             arrived = total = contacts = 0
-            lost, failures, rtfs = [], [], []
+            lost, failures, drives = [], [], []
             for seed in range(seeds):
-                robots, sim_s, wall_s = fs.run_process(site, name, seed=seed)
-                rtfs.append(sim_s / max(wall_s, 1e-9))
-                for r, solo in zip(robots, alone, strict=True):
+                drive = fs.run_process(site, name, seed=seed)
+                drives.append(drive)
+                for r, solo in zip(drive.robots, alone, strict=True):
                     contacts += r.bumps
                     if r.parked:            # no goal: only its contacts count
                         continue
@@ -63,7 +84,7 @@ def run(quick: bool = False) -> list[dict]:
                     else:
                         failures.append(f"{r.name} seed {seed}: {r.state} {r.text}")
                 print(f"[bench] {bench} {case} seed {seed}: " + "; ".join(
-                    f"{r.name} {r.state} {r.seconds:.1f} s, {r.bumps} bumps" for r in robots), flush=True)
+                    f"{r.name} {r.state} {r.seconds:.1f} s, {r.bumps} bumps" for r in drive.robots), flush=True)
             for f in failures:
                 print(f"[bench] {bench} {case}: not arrived: {f}", flush=True)
             rows += [
@@ -77,7 +98,9 @@ def run(quick: bool = False) -> list[dict]:
                  "reference_name": "s alone (median leg)", "goal": None, "met": None},
                 {"bench": bench, "case": case, "metric": "s lost to the others, worst", "ours":
                  max(lost) if lost else None, "reference": None, "reference_name": None, "goal": None, "met": None},
-                {"bench": bench, "case": case, "metric": "sim s per wall s", "ours": min(rtfs),
-                 "reference": 1.0, "reference_name": "asked", "goal": None, "met": None},
             ]
+            rows += _speed_rows(bench, case, drives, lambda d: [r.name for r in d.robots])
+        if solo_drives:
+            rows += _speed_rows(bench, f"each leg alone (1 robot, {len(solo_drives)} legs)", solo_drives,
+                                lambda d: [r.name for r in d.robots])
     return rows
