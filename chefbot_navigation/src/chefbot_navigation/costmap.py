@@ -161,6 +161,19 @@ class LayeredCostmap:
         """Does the robots layer mark any other robot?"""
         return self.robots_layer is not None and bool(self.robots_layer.grid.any())
 
+    def robot_near(self, x: float, y: float, radius: float) -> bool:
+        """Does the robots layer mark another robot's footprint within ``radius`` m of (x, y)?"""
+        if self.robots_layer is None:
+            return False
+        info = self.info
+        r, c = (int(v) for v in info.world_to_cell(x, y))
+        n = int(math.ceil(radius / info.resolution))
+        r0, r1, c0, c1 = max(r - n, 0), min(r + n + 1, info.height), max(c - n, 0), min(c + n + 1, info.width)
+        if r0 >= r1 or c0 >= c1:
+            return False
+        rows, cols = np.nonzero(self.robots_layer.grid[r0:r1, c0:c1])
+        return bool(len(rows)) and bool(np.any(np.hypot(rows + r0 - r, cols + c0 - c) * info.resolution <= radius))
+
     def _with_paths(self, cost: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
         """``cost`` (inflated, the grid's ``[rows, cols]``) raised to the other robots' path costs where
         it is below inscribed."""

@@ -40,6 +40,9 @@ move_base's state machine:
   The escape may brush what the robot touches where it stands (``without_touched``: a robot wedged
   in a gap's mouth).  At most ``MAX_ESCAPES`` per goal; after that the controller backs out along the
   path itself, and a block counts as a passage narrower than the robot (``narrow_patience``).
+  A block by the static map while another robot is within ``SQUEEZE_NEAR`` (or was, within
+  ``narrow_patience``) is an escape after ``SQUEEZE_WAIT``, not a narrow passage: planned round that
+  robot, this one was squeezed against a chair or a wall.
 
 Also here, pure: the node's own parameters (:class:`NodeParams`, read with
 :func:`read_move_base_params`), goal checking (:func:`parse_goal`) and the
@@ -78,6 +81,8 @@ RETREAT_SPEED = 0.1     # m/s
 MAX_ESCAPES = 2         # escapes (reversing along the trail to room to turn) per goal
 ESCAPE_BEYOND = 0.3     # m an escape reverses on after the first place with room to turn
 ESCAPE_TURN_S = 6.0     # s an escape may turn on the spot to put its back to the way it came
+SQUEEZE_NEAR = 1.0      # m: another robot this near (its footprint) when the map blocks the path: squeezed by it
+SQUEEZE_WAIT = 2.0      # s blocked so before a robot squeezed against the map backs out the way it came
 
 GOAL_ERRORS = ("goal_off_map", "goal_in_obstacle", "goal_too_close", "goal_unknown", "no_path", "start_off_map")
 RECOVERIES = ("clear_costmaps", "rotate", "back_off")
@@ -340,6 +345,7 @@ class Navigator:
         self._plan_through_robot = False    # the latest plan goes through another robot (robots_as_cost)
         self.giving_way_reason = ""
         self.escapes = 0                    # escapes of the current goal (MAX_ESCAPES)
+        self.robot_near_t = -math.inf       # the last time another robot was within SQUEEZE_NEAR (this goal)
         self._reset_timers(0.0)
 
     def set_hold(self, reason: str) -> None:
@@ -380,6 +386,7 @@ class Navigator:
         self.status = ""
         self.giving_way_until = -math.inf
         self.escapes = 0
+        self.robot_near_t = -math.inf
         self._say("planning")
         self._reset_timers(t)
 
@@ -728,9 +735,20 @@ class Navigator:
         if cmd.status == "blocked":
             self.need_plan = True
             self.blocked_since = t if self.blocked_since is None else self.blocked_since
+            if narrow and self.costmap.robot_near(pose.x, pose.y, SQUEEZE_NEAR):
+                self.robot_near_t = t
+            # the map blocks the path while another robot is (or just was) beside it: planned round that
+            # robot, it was squeezed against a chair or wall, not sent into too narrow an aisle; back out the
+            # way it came and plan afresh (the hotel's 1.0 m chair pinch, two robots head-on)
+            squeezed = narrow and t - self.robot_near_t <= self.p.narrow_patience
+            if squeezed and t - self.blocked_since >= SQUEEZE_WAIT and self.escapes < MAX_ESCAPES and \
+                    len(self.trail) > 1:
+                self.escapes += 1
+                self.blocked_since = None
+                return self._start_retreat(t, pose, f"squeezed against the map beside another robot{at}", "escape")
             if narrow:
                 self._say(f"blocked: passage narrower than the robot{at} ({cmd.detail})")
-                if t - self.blocked_since > self.p.narrow_patience:
+                if not squeezed and t - self.blocked_since > self.p.narrow_patience:
                     # the map itself leaves no room: replanning, clearing or waiting cannot help
                     return self._finish("aborted", f"blocked: aisle narrower than the robot{at} "
                                                    f"for {self.p.narrow_patience:g} s")

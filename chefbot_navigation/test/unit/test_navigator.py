@@ -505,3 +505,54 @@ def test_a_trail_of_marks_behind_a_fleet_robot_is_cleared_not_taken_for_a_wall()
     assert not any(s.startswith("recovering") for s in states), states      # cleared at once, no recovery
     assert not layers.cloud_layer.grid.any()
     assert math.hypot(pose.x + 3.0, pose.y) <= 0.05
+
+
+class SqueezedController:
+    """The real controller, except that from ``t0`` to ``t1`` it reports the path ahead blocked by the
+    static map at ``where`` (the squeeze beside a chair that planning round another robot led into)."""
+
+    def __init__(self, inner, t0: float, t1: float, where: tuple[float, float]) -> None:
+        self.inner, self.t0, self.t1, self.where = inner, t0, t1, where
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def compute(self, pose, t, costmap):
+        from chefbot_navigation.controller import Command
+        if self.t0 <= t <= self.t1:
+            return Command(0.0, 0.0, "blocked", "obstacle ahead on the path", self.where)
+        return self.inner.compute(pose, t, costmap)
+
+
+@pytest.mark.parametrize("other_robot", [True, False])
+def test_squeezed_against_the_map_beside_another_robot_backs_out_instead_of_aborting(other_robot: bool) -> None:
+    """Two robots head-on at the hotel's 1.0 m chair pinch (a bench run): planned round the other robot,
+    one was squeezed against a chair, the map blocked its path, and after 5 s it aborted the goal as 'an
+    aisle narrower than the robot'.  Beside another robot it backs out the way it came and plans afresh;
+    with no robot about, the same block is still a passage narrower than the robot (aborted)."""
+    layers = LayeredCostmap(room(), CostmapParams())
+    layers.robots_layer = RobotsLayer(layers.info, RobotsLayerParams(footprint_padding=0.0), "chefbot1")
+    cp = ControllerParams()
+    ctrl = SqueezedController(make_controller("regulated_pure_pursuit", cp), 3.0, 10.0, (0.0, -2.0))
+    nav = Navigator(NavigatorParams(), cp, make_planner("dijkstra", PlannerParams()), ctrl, layers)
+    nav.set_goal(Goal(3.0, -3.0, None), 0.0)
+    escapes = []
+
+    def hook(t: float, pose: Pose2D) -> None:
+        if other_robot and t < 11.0:     # beside it, 0.7 m to its right
+            layers.robots_layer.update(OtherRobot("chefbot2", t, pose.x + 0.3, pose.y - 0.63, 0.0, radius=0.2))
+        else:
+            layers.robots_layer.forget("chefbot2")
+        layers.robots_layer.refresh(t)
+        layers.layers_changed()
+        if nav.recovery == "escape" and (not escapes or escapes[-1] < t - 0.2):
+            escapes.append(t)
+
+    res, pose, t = run(nav, Pose2D(-3.0, -3.0, 0.0), hook=hook)
+    if other_robot:
+        assert res.outcome == "succeeded", res.text
+        assert escapes and 4.9 <= escapes[0] <= 5.6, escapes      # after SQUEEZE_WAIT blocked
+        assert math.hypot(pose.x - 3.0, pose.y + 3.0) <= 0.05
+    else:
+        assert res.outcome == "aborted" and "aisle narrower than the robot at (0.00, -2.00)" in res.text, res.text
+        assert not escapes and 8.0 <= t <= 8.6

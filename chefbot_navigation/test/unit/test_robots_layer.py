@@ -205,3 +205,18 @@ def test_robots_as_cost_opens_the_way_through_a_robot_but_not_through_other_mark
     cm.robots_layer.refresh(0.0)
     cm.layers_changed()
     assert int(cm.master(robots_as_cost=True).cost_at(2.2, 1.0)) == LETHAL    # no robot: marks are marks
+
+
+def test_robot_near_measures_to_the_nearest_cell_of_another_robot() -> None:
+    """``LayeredCostmap.robot_near``: a robot of radius 0.2 m centred 1.0 m away is within 0.85 m (its
+    near edge, 0.8 m, to a cell), not within 0.7 m; off the map or with no layer, no robot is near."""
+    layers = LayeredCostmap(OccupancyMap(INFO, np.zeros((INFO.height, INFO.width), dtype=np.int8)),
+                            CostmapParams(robot_radius=0.18, inflation_radius=0.4))
+    assert not layers.robot_near(1.0, 1.0, 5.0)                    # no robots layer
+    layers.robots_layer = RobotsLayer(INFO, RobotsLayerParams(footprint_padding=0.0), "chefbot1")
+    layers.robots_layer.update(OtherRobot("chefbot2", 0.0, 2.0, 1.0, 0.0, radius=0.2))
+    layers.robots_layer.refresh(0.0)
+    assert layers.robot_near(1.0, 1.0, 0.85)
+    assert not layers.robot_near(1.0, 1.0, 0.7)
+    assert layers.robot_near(2.0, 1.0, 0.0)                        # on it
+    assert not layers.robot_near(50.0, 50.0, 1.0)                  # off the map
