@@ -11,7 +11,8 @@ help:
 	@echo "make demo SLAM=1 - book ch. 4 in one go: explore + map with our SLAM, save the map, localize on it (amcl), deliver"
 	@echo "make demo ROBOTS=3 - three robots in one simulated hotel deliver at once (FLEET_FILE= for another site)"
 	@echo "make test   - install what is missing, build, run every test; last line 'N passed, M failed'"
-	@echo "make bench  - benchmarks: figures side by side, JSON in bench-results/, report docs/benchmarks.md"
+	@echo "make bench [K=SUBSTRING] - benchmarks (K: only the files whose path contains it): figures side by side,"
+	@echo "              JSON in bench-results/, report docs/benchmarks.md (only the sections measured are replaced)"
 	@echo "make soak [HOURS=2] [ROBOTS=3] [SEED=0] - the fleet soak: HOURS of sim time of orders, robot and dispatcher"
 	@echo "              kills, batteries; JSON in bench-results/soak-*.json, report docs/soak.md (runs >= 1 h or REPORT=1)"
 	@echo "make shell  - a bash with the workspace sourced (roslaunch/rosrun ready)"
@@ -36,8 +37,10 @@ demo: setup
 	  $(if $(ROBOTS),CHEFBOT_DEMO_ROBOTS='$(ROBOTS)') $(if $(FLEET_FILE),CHEFBOT_DEMO_FLEET_FILE='$(FLEET_FILE)') \
 	  $(if $(TABLES_FILE),CHEFBOT_DEMO_TABLES_FILE='$(TABLES_FILE)') $(WITH_ENV) python tools/demo.py
 
+# make bench [K=SUBSTRING]: every benchmark, or only the files whose path contains K (their report sections
+# are replaced, the others kept: docs/testing.md)
 bench: setup
-	@$(WITH_ENV) python tools/bench.py
+	@$(WITH_ENV) python tools/bench.py $(if $(K),-k '$(K)')
 
 # make soak [HOURS=2] [ROBOTS=3] [SEED=0] [REPORT=1]: the fleet soak test (tools/fleet_soak.py; not part of
 # make test nor make bench). HOURS of sim time, fractional for a short check (HOURS=0.15); REPORT=1 writes
