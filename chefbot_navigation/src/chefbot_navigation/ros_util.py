@@ -53,10 +53,14 @@ def periodic(rate_hz: float, fn: Callable[[], None], health: TaskHealth | None =
 
 
 def run_guarded(fn: Callable[[], None], health: TaskHealth) -> bool:
-    """Call ``fn``; an exception (MemoryError included) is counted and logged, not raised. True if it ran."""
+    """Call ``fn``; an exception (MemoryError included) is counted and logged, not raised. True if it ran.
+    One raised while the node shuts down (its publishers closed under the running task: "publish() to a
+    closed topic") is neither: nothing went wrong."""
     try:
         fn()
     except Exception as exc:   # noqa: BLE001 -- a background task must survive anything fn raises
+        if rospy.is_shutdown():
+            return False
         line = health.failed(exc, rospy.get_time())
         if line is not None:
             rospy.logerr(line)
