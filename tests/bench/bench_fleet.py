@@ -27,11 +27,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 
-def _speed_rows(bench: str, case: str, drives, names_of) -> list[dict]:
+def _speed_rows(bench: str, case: str, drives) -> list[dict]:
     """Sim s per wall s (the slowest run) and CPU s per sim s of each robot stack and of the simulator
     (means over the runs) while the robots drove: what 1, 2 or 3 full stacks cost on this machine."""
     rtf = min(d.seconds / max(d.wall_seconds, 1e-9) for d in drives)
-    stack = statistics.mean(d.cpu[n] / max(d.seconds, 1e-9) for d in drives for n in names_of(d))
+    stack = statistics.mean(d.cpu[n] / max(d.seconds, 1e-9) for d in drives for n in (r.name for r in d.robots))
     sim = statistics.mean(d.cpu["sim"] / max(d.seconds, 1e-9) for d in drives)
     rest = statistics.mean(d.cpu["rest"] / max(d.seconds, 1e-9) for d in drives)
     return [
@@ -99,8 +99,7 @@ def run(quick: bool = False) -> list[dict]:
                 {"bench": bench, "case": case, "metric": "s lost to the others, worst", "ours":
                  max(lost) if lost else None, "reference": None, "reference_name": None, "goal": None, "met": None},
             ]
-            rows += _speed_rows(bench, case, drives, lambda d: [r.name for r in d.robots])
+            rows += _speed_rows(bench, case, drives)
         if solo_drives:
-            rows += _speed_rows(bench, f"each leg alone (1 robot, {len(solo_drives)} legs)", solo_drives,
-                                lambda d: [r.name for r in d.robots])
+            rows += _speed_rows(bench, f"each leg alone (1 robot, {len(solo_drives)} legs)", solo_drives)
     return rows
