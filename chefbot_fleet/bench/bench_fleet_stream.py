@@ -13,16 +13,17 @@ makespan, km driven, bumper contacts, orders lost (never final) or served twice,
 wall second.  Goals: 3 robots ≥ 2.5× the throughput of one; our mean wait ≤ 0.8× the baseline's;
 0 contacts; 0 orders lost or duplicated.  Six runs of some 15–40 min of sim time each at real time:
 about 2–3 h (quick: two runs, about 10 min).  ``CHEFBOT_STREAM_SEED`` (default 0) picks the stream.
+Each run's logs stay in build/bench_fleet_stream/ROBOTS_POLICY/.
 """
 from __future__ import annotations
 
 import importlib.util
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -50,29 +51,31 @@ def stream_gap() -> float:
 
 def run_stream(robots: int, policy: str, orders: int, every: float, seed: int) -> dict:
     """One full-stack run of the stream; fleet_demo's summary (its fleet.json) plus ``exit``."""
-    with tempfile.TemporaryDirectory(prefix="bench_fleet_stream_") as tmp:
-        env = dict(os.environ, CHEFBOT_DEMO_ROBOTS=str(robots), CHEFBOT_DEMO_POLICY=policy,
-                   CHEFBOT_DEMO_ORDERS=str(orders), CHEFBOT_DEMO_ORDER_EVERY=f"{every:.3f}",
-                   CHEFBOT_DEMO_SEED=str(seed), CHEFBOT_DEMO_DIR=tmp, CHEFBOT_DEMO_GUI="0", CHEFBOT_DEMO_RTF="1.0")
-        proc = subprocess.Popen([sys.executable, str(ROOT / "tools" / "fleet_demo.py")], env=env,
-                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        try:
-            out, _ = proc.communicate(timeout=RUN_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            proc.terminate()            # fleet_demo stops its process groups on SIGTERM
-            out, _ = proc.communicate()
-        code = proc.returncode
-        for line in out.splitlines():
-            if line.startswith("[demo] delivered") or "ERROR" in line:
-                print(f"[bench] fleet_stream {robots} robot(s), {policy}: {line[7:]}", flush=True)
-        path = Path(tmp) / "fleet.json"
-        if not path.is_file():          # the run died before its summary: show why, count every order lost
-            tail = "\n".join(out.splitlines()[-20:])
-            print(f"[bench] fleet_stream {robots} robot(s), {policy}: no summary (exit {code}); "
-                  f"its last lines:\n{tail}", flush=True)
-            return {"exit": code, "orders": orders, "delivered": 0, "lost": orders, "served_twice": 0,
-                    "contacts": 0}
-        summary = json.loads(path.read_text())["summary"]
+    tmp = ROOT / "build" / "bench_fleet_stream" / f"{robots}_{policy}"      # kept: the run's logs
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    env = dict(os.environ, CHEFBOT_DEMO_ROBOTS=str(robots), CHEFBOT_DEMO_POLICY=policy,
+               CHEFBOT_DEMO_ORDERS=str(orders), CHEFBOT_DEMO_ORDER_EVERY=f"{every:.3f}",
+               CHEFBOT_DEMO_SEED=str(seed), CHEFBOT_DEMO_DIR=str(tmp), CHEFBOT_DEMO_GUI="0", CHEFBOT_DEMO_RTF="1.0")
+    proc = subprocess.Popen([sys.executable, str(ROOT / "tools" / "fleet_demo.py")], env=env,
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        out, _ = proc.communicate(timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        proc.terminate()            # fleet_demo stops its process groups on SIGTERM
+        out, _ = proc.communicate()
+    code = proc.returncode
+    for line in out.splitlines():
+        if line.startswith("[demo] delivered") or "ERROR" in line:
+            print(f"[bench] fleet_stream {robots} robot(s), {policy}: {line[7:]}", flush=True)
+    path = tmp / "fleet.json"
+    if not path.is_file():          # the run died before its summary: show why, count every order lost
+        tail = "\n".join(out.splitlines()[-20:])
+        print(f"[bench] fleet_stream {robots} robot(s), {policy}: no summary (exit {code}); "
+              f"its last lines:\n{tail}", flush=True)
+        return {"exit": code, "orders": orders, "delivered": 0, "lost": orders, "served_twice": 0,
+                "contacts": 0}
+    summary = json.loads(path.read_text())["summary"]
     summary["exit"] = code
     return summary
 
