@@ -49,6 +49,7 @@ import xmlrpc.client
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_report import collect_meta, fmt_duration
@@ -94,14 +95,31 @@ def fault_schedule(sim_s: float, names: list[str], seed: int) -> list[dict]:
     return sorted(faults, key=lambda f: f["at"])
 
 
-def sim_battery(hours: float) -> dict:
+START_SOCS = (0.4, 0.55, 0.7)    # the robots' start charges, in turn: they go to charge one after another
+
+
+def sim_battery(hours: float, names: list[str]) -> dict:
     """chefbot_sim_node battery params that make every robot go to charge within a run of ``hours``:
     a pack of 2 Ah per hour of run, at least 1 Ah (the dispatcher's last 25 % must carry a robot through
-    the trip it is on: ~200 s at ~3.5 A is 0.2 Ah; a 0.3 Ah pack ran flat on the way), starting at 40 %
-    (at ~3 A a robot of a 2 h run reaches 25 % after a tenth of it) and a 10 A charger (25 -> 90 % in
-    about a sixth of a 2 h run)."""
-    return {"battery_capacity_ah": round(max(1.0, 2.0 * hours), 3), "battery_initial_soc": 0.4,
-            "charge_current": 10.0}
+    the trip it is on: ~200 s at ~3.5 A is 0.2 Ah; a 0.3 Ah pack ran flat on the way), each robot
+    starting at its own charge (``~robot_options``: 40, 55, 70 %, in turn; at ~3 A a robot of a 2 h
+    run reaches 25 % after a tenth, a fifth, three tenths of it: with one start for all, every robot
+    went to charge at once and the queue waited) and a 10 A charger (25 -> 90 % in about a sixth of a
+    2 h run)."""
+    return {"battery_capacity_ah": round(max(1.0, 2.0 * hours), 3), "battery_initial_soc": START_SOCS[0],
+            "charge_current": 10.0,
+            "robot_options": {n: {"battery_initial_soc": START_SOCS[k % len(START_SOCS)]}
+                              for k, n in enumerate(names)}}
+
+
+def start_socs(battery: dict) -> str:
+    """The robots' start charges of :func:`sim_battery`'s params, for the report (``40 %`` or
+    ``chefbot1 40 %, chefbot2 55 %``)."""
+    per = battery.get("robot_options") or {}
+    if not per:
+        return f"{battery['battery_initial_soc']:.0%}"
+    return ", ".join(f"{n} {o.get('battery_initial_soc', battery['battery_initial_soc']):.0%}"
+                     for n, o in per.items())
 
 
 def record_states(histories: dict[str, list[tuple[str, str, float]]], orders, t: float) -> None:
@@ -272,7 +290,7 @@ def render_report(doc: dict) -> str:
             f"| Wall time | {fmt_duration(doc['wall_seconds'])} |",
             f"| Real-time factor | {doc['rtf_achieved']:.2f} achieved ({doc['rtf_asked']} asked) |",
             f"| Batteries | {doc['battery']['battery_capacity_ah']} Ah from "
-            f"{doc['battery']['battery_initial_soc']:.0%}, charger {doc['battery']['charge_current']:g} A "
+            f"{start_socs(doc['battery'])}, charger {doc['battery']['charge_current']:g} A "
             "(the world's `sim_params`) |",
             f"| Result | **{verdict}** |", "",
             "## Checks", "", "| check | ok | detail |", "|---|:-:|---|"]
@@ -745,10 +763,10 @@ def main() -> int:
     count = max(1, int(sim_s / args.order_every))
     stream = [o for o in order_stream(table_names, count * 2, args.order_every, args.seed) if o[0] < sim_s][:count * 2]
     schedule = fault_schedule(sim_s, names, args.seed)
-    battery = sim_battery(args.hours)
+    battery = sim_battery(args.hours, names)
     LOG_DIR.mkdir(parents=True, exist_ok=True)
     sim_params = LOG_DIR / "sim_params.yaml"
-    sim_params.write_text("".join(f"{k}: {v}\n" for k, v in battery.items()))
+    sim_params.write_text(yaml.safe_dump(battery, sort_keys=False))
     database = LOG_DIR / "orders.sqlite"
     database.unlink(missing_ok=True)
     meta = collect_meta()

@@ -20,6 +20,7 @@ from fleet_soak import (
     render_report,
     restarts_by_others,
     sim_battery,
+    start_socs,
 )
 
 NAMES = ["chefbot1", "chefbot2", "chefbot3"]
@@ -36,14 +37,19 @@ def test_the_faults_are_two_kills_of_one_robot_and_one_of_the_dispatcher_at_fixe
         fault_schedule(0.0, NAMES, 0)
 
 
-def test_the_batteries_scale_with_the_run_so_a_robot_charges_within_it() -> None:
+def test_the_batteries_scale_with_the_run_so_every_robot_charges_within_it_one_after_another() -> None:
     for hours in (0.5, 2.0, 8.0):
-        b = sim_battery(hours)
-        drain_h = (b["battery_initial_soc"] - 0.25) * b["battery_capacity_ah"] / 3.0      # ~3 A drawn
-        charge_h = (0.9 - 0.25) * b["battery_capacity_ah"] / (b["charge_current"] - 2.5)
-        assert drain_h + charge_h < 0.6 * hours, hours
+        b = sim_battery(hours, NAMES)
+        socs = [b["robot_options"][n]["battery_initial_soc"] for n in NAMES]
+        assert len(set(socs)) == len(NAMES)           # not all at the charger at once
+        for soc in socs:
+            drain_h = (soc - 0.25) * b["battery_capacity_ah"] / 3.0      # ~3 A drawn
+            charge_h = (0.9 - 0.25) * b["battery_capacity_ah"] / (b["charge_current"] - 2.5)
+            assert drain_h + charge_h < 0.6 * hours, (hours, soc)
     for hours in (0.05, 0.15, 2.0):     # the last 25 % carries a robot through a trip (~200 s at 3.5 A)
-        assert 0.25 * sim_battery(hours)["battery_capacity_ah"] >= 200 * 3.5 / 3600, hours
+        assert 0.25 * sim_battery(hours, NAMES)["battery_capacity_ah"] >= 200 * 3.5 / 3600, hours
+    assert start_socs(sim_battery(2.0, NAMES[:2])) == f"{NAMES[0]} 40%, {NAMES[1]} 55%"
+    assert start_socs({"battery_initial_soc": 0.4}) == "40%"      # a report of an older run
 
 
 def test_state_changes_are_recorded_once_each() -> None:
@@ -119,7 +125,7 @@ def _doc(**over) -> dict:
            "restarts_by_others": [], "meta": {"date_utc": "2026-12-01 20:00", "commit": "abc"}, "robots": 3,
            "names": NAMES, "seed": 0, "sim_hours": 2.0, "sim_seconds": 7200.0, "drain_seconds": 60.0,
            "wall_seconds": 8000.0, "rtf_asked": "1.0", "rtf_achieved": 0.9, "order_every_s": 30.0,
-           "battery": sim_battery(2.0), "summary": {"orders_per_hour": 40.0, "wait_median_s": 100.0,
+           "battery": sim_battery(2.0, NAMES), "summary": {"orders_per_hour": 40.0, "wait_median_s": 100.0,
                                                     "wait_p95_s": 300.0},
            "contacts": {"chefbot1": 0}, "sample_every_s": 10.0, "warmup_s": 300.0}
     doc.update(over)

@@ -9,8 +9,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from chefbot_common.params import ParamError, private_spec
-from chefbot_sim.sim import SimOptions
+from chefbot_common.params import ParamError, private_spec, read_config
+from chefbot_sim.sim import SimConfigError, SimOptions
 
 DEFAULT_FIRMWARE_MAX_RTF = 0.0   # no cap; see the package README, "Firmware in the loop"
 STEPS_PER_BATCH = 12  # physics steps between checks of requests/pacing (0.05 s of sim time)
@@ -82,11 +82,23 @@ class CliffTopicsParams:
                                                        #   (a sensor not listed: cliff/<name without cliff_>)
 
 
+@dataclass(frozen=True)
+class RobotOptionsParams:
+    """Per-robot simulator options of a fleet (checked by :func:`member_options`)."""
+
+    robot_options: dict = field(default_factory=dict)  # with fleet_file: robot name -> {option: value}, that
+                                                       #   robot's simulator options over the ones above (e.g.
+                                                       #   {chefbot2: {battery_initial_soc: 0.6}}; not time_step
+                                                       #   or solver_iterations, which the world shares)
+
+
 # what chefbot_sim_node reads (its PARAMS): the node's own params, the Simulator's options (every
 # SimOptions field but time_step) and the cliff topics, as ``~name``; robot_description relative
 SIM_NODE = private_spec(SimNodeParams, robot_description="robot_description")
 SIM_OPTIONS = private_spec(SimOptions, skip=("time_step",))
 CLIFF_TOPICS = private_spec(CliffTopicsParams)
+ROBOT_OPTIONS = private_spec(RobotOptionsParams)
+SHARED_OPTIONS = ("time_step", "solver_iterations")   # one world steps every robot alike
 
 
 def read_sim_params(get: Callable[[str, Any], Any]) -> tuple[SimNodeParams, SimOptions]:
@@ -170,11 +182,48 @@ def fleet_members(node: SimNodeParams, get: Callable[[str, Any], Any]) -> list[F
     return out
 
 
-def member_options(opts: SimOptions, index: int, name: str) -> SimOptions:
+def check_robot_options(mapping: Any, names: list[str]) -> dict[str, dict]:
+    """``~robot_options`` checked against the fleet's robot names: a map name -> map of options.
+    ParamError names an unknown robot or a value that is not a map."""
+    if mapping is None:
+        return {}
+    if not isinstance(mapping, dict):
+        raise ParamError(f"parameter ~robot_options must be a map robot name -> {{option: value}}, got {mapping!r}")
+    unknown = sorted(map(str, set(mapping) - set(names)))
+    if unknown:
+        raise ParamError(f"parameter ~robot_options names {', '.join(unknown)}, but the sim holds "
+                         f"{', '.join(names)}")
+    for robot, over in mapping.items():
+        if not isinstance(over, dict):
+            raise ParamError(f"parameter ~robot_options/{robot} must be a map option -> value, got {over!r}")
+    return dict(mapping)
+
+
+def member_options(opts: SimOptions, index: int, name: str, overrides: dict | None = None) -> SimOptions:
     """Robot ``index`` (named ``name``) of a fleet gets the sim's options with its own noise seed
     (seed + index), its own LaunchPad pty link (pty_link + '_' + name) and its lidar frame under
-    its tf prefix ('<name>/laser' unless lidar_frame names a prefix already)."""
-    from dataclasses import replace
+    its tf prefix ('<name>/laser' unless lidar_frame names a prefix already), then ``overrides``
+    (its entry of ``~robot_options``: SimOptions fields; an option given there wins, seed included).
+    ParamError names an unknown, shared or bad option."""
+    from dataclasses import fields, replace
     lidar_frame = opts.lidar_frame if "/" in opts.lidar_frame else f"{name}/{opts.lidar_frame}"
-    return replace(opts, seed=opts.seed + index, pty_link=f"{opts.pty_link}_{name}" if opts.pty_link else "",
+    base = replace(opts, seed=opts.seed + index, pty_link=f"{opts.pty_link}_{name}" if opts.pty_link else "",
                    lidar_frame=lidar_frame)
+    over = dict(overrides or {})
+    if not over:
+        return base
+    prefix = f"~robot_options/{name}/"
+    known = {f.name for f in fields(SimOptions)}
+    bad = sorted(map(str, set(over) - (known - set(SHARED_OPTIONS))))
+    if bad:
+        raise ParamError(f"parameter {prefix}{bad[0]}: not a per-robot simulator option "
+                         + ("(the world steps every robot alike)" if bad[0] in SHARED_OPTIONS
+                            else "(see the node's simulator options)"))
+    fixed = {k: getattr(base, k) for k in known if k not in over}
+    out = read_config(SimOptions, lambda p, d: over.get(p.removeprefix(prefix), d), {k: prefix + k for k in over},
+                      **fixed)
+    try:
+        out.validate()
+    except SimConfigError as exc:
+        raise ParamError(f"parameter {prefix[:-1]}: {exc}") from None
+    return out

@@ -131,3 +131,38 @@ def test_a_fleet_world_names_the_robots_whose_models_are_missing(pkg) -> None:
     models["chefbot1/robot_description"] = "<robot name='c1'/>"
     assert missing_models(node, getter(models)) == []
     assert [m.name for m in fleet_members(node, getter(models))] == ["chefbot1", "chefbot2"]
+
+
+def test_robot_options_give_one_robot_of_a_fleet_its_own_settings() -> None:
+    from chefbot_sim.node_params import check_robot_options, member_options
+    from chefbot_sim.sim import SimOptions
+
+    opts = SimOptions(seed=4, battery_initial_soc=0.4)
+    per = check_robot_options({"chefbot2": {"battery_initial_soc": 0.7, "drive": "firmware"}},
+                              ["chefbot1", "chefbot2"])
+    one, two = member_options(opts, 0, "chefbot1", per.get("chefbot1")), member_options(opts, 1, "chefbot2",
+                                                                                          per.get("chefbot2"))
+    assert one.battery_initial_soc == pytest.approx(0.4) and one.drive == opts.drive and one.seed == 4
+    assert two.battery_initial_soc == pytest.approx(0.7) and two.drive == "firmware"
+    assert two.seed == 5 and two.lidar_frame == "chefbot2/laser"      # what every member gets still holds
+    assert member_options(opts, 1, "chefbot2", {"seed": 9}).seed == 9
+    assert check_robot_options(None, ["chefbot1"]) == {}
+
+
+@pytest.mark.parametrize("mapping, over, match", [
+    ({"chefbot9": {"battery_initial_soc": 0.5}}, None, "names chefbot9, but the sim holds chefbot1"),
+    (["chefbot1"], None, "must be a map robot name"),
+    ({"chefbot1": 0.5}, None, "robot_options/chefbot1 must be a map option"),
+    (None, {"no_such_option": 1}, "robot_options/chefbot1/no_such_option: not a per-robot"),
+    (None, {"time_step": 0.01}, "world steps every robot alike"),
+    (None, {"battery_initial_soc": "full"}, "robot_options/chefbot1/battery_initial_soc must be a number"),
+    (None, {"battery_initial_soc": 1.5}, "robot_options/chefbot1.*battery_initial_soc must be within 0..1"),
+])
+def test_bad_robot_options_are_named(mapping, over, match) -> None:
+    from chefbot_sim.node_params import check_robot_options, member_options
+    from chefbot_sim.sim import SimOptions
+
+    with pytest.raises(ParamError, match=match):
+        if mapping is not None:
+            check_robot_options(mapping, ["chefbot1"])
+        member_options(SimOptions(), 0, "chefbot1", over)
