@@ -113,8 +113,8 @@ def sim_battery(hours: float, names: list[str]) -> dict:
 
 
 def start_socs(battery: dict) -> str:
-    """The robots' start charges of :func:`sim_battery`'s params, for the report (``40 %`` or
-    ``chefbot1 40 %, chefbot2 55 %``)."""
+    """The robots' start charges of :func:`sim_battery`'s params, for the report (``40%`` or
+    ``chefbot1 40%, chefbot2 55%``)."""
     per = battery.get("robot_options") or {}
     if not per:
         return f"{battery['battery_initial_soc']:.0%}"
