@@ -23,7 +23,6 @@ import importlib.util
 import json
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -45,10 +44,7 @@ def stream_gap() -> float:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     site, names = mod.hotel_site()
-    tables = [n for n in names if n != site.kitchen]
-    busy = statistics.mean(site.load_s + site.travel("home", t) + site.serve_s + site.travel(t, "home")
-                           for t in tables)
-    return mod.rates(busy)[-1][0]
+    return mod.rates(mod.single_order_trip_s(site, [n for n in names if n != site.kitchen]))[-1][0]
 
 
 def run_stream(robots: int, policy: str, orders: int, every: float, seed: int) -> dict:
