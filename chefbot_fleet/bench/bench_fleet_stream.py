@@ -15,7 +15,11 @@ makespan, km driven, bumper contacts, orders lost (never final) or served twice,
 wall second.  Goals: 3 robots ≥ 2.5× the throughput of one; our mean wait ≤ 0.8× the baseline's;
 0 contacts; 0 orders lost or duplicated.  Six runs of some 15–40 min of sim time each at real time:
 about 2–3 h (quick: two runs, about 10 min).  ``CHEFBOT_STREAM_SEED`` (default 0) picks the stream.
-Each run's logs stay in build/bench_fleet_stream/ROBOTS_POLICY/.
+Each run's logs stay in build/bench_fleet_stream/ROBOTS_POLICY/, with its settings (settings.json:
+robots, policy, orders, gap, seed, commit).  ``CHEFBOT_STREAM_REUSE=1`` takes a kept run whose
+summary is there and whose settings are this run's instead of running it again (an interrupted
+bench resumes, or runs split across machines are put together); each reused run is named with its
+commit on the bench's output.  ``CHEFBOT_STREAM_FLEETS`` (default "1,2,3") picks the fleet sizes.
 """
 from __future__ import annotations
 
@@ -34,6 +38,35 @@ METRICS = (("orders per hour", "orders_per_hour"), ("wait s, mean", "wait_mean_s
            ("wait s, median", "wait_median_s"), ("wait s, 95th percentile", "wait_p95_s"),
            ("makespan s", "makespan_s"), ("km driven", "km"), ("sim s per wall s", "sim_per_wall"))
 RUN_TIMEOUT_S = 4 * 3600.0      # one run's wall-time bound (against hangs only)
+SETTINGS = ("robots", "policy", "orders", "every", "seed")     # what makes two runs the same run
+
+
+def run_settings(robots: int, policy: str, orders: int, every: float, seed: int) -> dict:
+    """A run's settings as kept in its settings.json (the gap to the millisecond fleet_demo is given)."""
+    return {"robots": robots, "policy": policy, "orders": orders, "every": round(every, 3), "seed": seed}
+
+
+def kept_run(run_dir: Path, settings: dict) -> dict | None:
+    """The summary of the run kept in ``run_dir`` when it was made with ``settings`` (its
+    settings.json) and finished (its fleet.json), plus ``exit`` 0 and ``commit``; else None."""
+    try:
+        kept = json.loads((run_dir / "settings.json").read_text())
+        summary = json.loads((run_dir / "fleet.json").read_text())["summary"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(kept, dict) or any(kept.get(k) != settings[k] for k in SETTINGS if k != "every"):
+        return None
+    if not isinstance(kept.get("every"), (int, float)) or abs(kept["every"] - settings["every"]) > 5e-4:
+        return None                 # another gap (fleet_demo is given it to the millisecond)
+    return dict(summary, exit=0, commit=kept.get("commit"))
+
+
+def _head() -> str | None:
+    try:
+        return subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
 
 
 def stream_gap() -> float:
@@ -48,10 +81,19 @@ def stream_gap() -> float:
 
 
 def run_stream(robots: int, policy: str, orders: int, every: float, seed: int) -> dict:
-    """One full-stack run of the stream; fleet_demo's summary (its fleet.json) plus ``exit``."""
+    """One full-stack run of the stream; fleet_demo's summary (its fleet.json) plus ``exit``.  With
+    ``CHEFBOT_STREAM_REUSE=1``, the kept run of the same settings if it finished."""
     tmp = ROOT / "build" / "bench_fleet_stream" / f"{robots}_{policy}"      # kept: the run's logs
+    settings = run_settings(robots, policy, orders, every, seed)
+    if os.environ.get("CHEFBOT_STREAM_REUSE", "") not in ("", "0"):
+        kept = kept_run(tmp, settings)
+        if kept is not None:
+            print(f"[bench] fleet_stream {robots} robot(s), {policy}: the kept run of {kept['commit'] or '?'} "
+                  f"({tmp}): delivered {kept.get('delivered')}/{orders}", flush=True)
+            return kept
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
+    (tmp / "settings.json").write_text(json.dumps(dict(settings, commit=_head()), indent=1) + "\n")
     env = dict(os.environ, CHEFBOT_DEMO_ROBOTS=str(robots), CHEFBOT_DEMO_POLICY=policy,
                CHEFBOT_DEMO_ORDERS=str(orders), CHEFBOT_DEMO_ORDER_EVERY=f"{every:.3f}",
                CHEFBOT_DEMO_SEED=str(seed), CHEFBOT_DEMO_DIR=str(tmp), CHEFBOT_DEMO_GUI="0", CHEFBOT_DEMO_RTF="1.0")
@@ -117,11 +159,22 @@ def stream_rows(results: dict[tuple[int, str], dict], orders: int, every: float,
     return rows
 
 
+def fleet_sizes(raw: str) -> tuple[int, ...]:
+    """``CHEFBOT_STREAM_FLEETS``: the fleet sizes to run, e.g. "1,3" (default: 1, 2 and 3 robots)."""
+    try:
+        sizes = tuple(sorted({int(x) for x in raw.replace(",", " ").split()})) or (1, 2, 3)
+    except ValueError:
+        raise ValueError(f"CHEFBOT_STREAM_FLEETS must be robot counts such as '1,3', got {raw!r}") from None
+    if sizes[0] < 1:
+        raise ValueError(f"CHEFBOT_STREAM_FLEETS: a fleet has at least one robot, got {raw!r}")
+    return sizes
+
+
 def run(quick: bool = False) -> list[dict]:
     orders = 6 if quick else int(os.environ.get("CHEFBOT_STREAM_ORDERS", "30"))
     every = float(os.environ.get("CHEFBOT_STREAM_EVERY", "0") or 0) or stream_gap()
     seed = int(os.environ.get("CHEFBOT_STREAM_SEED", "0"))
-    fleets = (1, 3) if quick else (1, 2, 3)
+    fleets = (1, 3) if quick else fleet_sizes(os.environ.get("CHEFBOT_STREAM_FLEETS", ""))
     policies = ("insertion",) if quick else POLICIES
     results = {(n, p): run_stream(n, p, orders, every, seed) for n in fleets for p in policies}
     return stream_rows(results, orders, every, seed)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -48,3 +49,42 @@ def test_a_failed_run_is_a_failed_row_not_a_crash() -> None:
     assert by(rows, "1 robot", "orders lost or served twice")["ours"] == 2
     assert by(rows, "3 robots", "orders per hour")["ours"] is None
     assert not [r for r in rows if r["metric"] == "ratio"]            # no throughput of a failed run
+
+
+def keep(run_dir: Path, settings: dict | None, summary_doc: dict | None) -> None:
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if settings is not None:
+        (run_dir / "settings.json").write_text(json.dumps(settings))
+    if summary_doc is not None:
+        (run_dir / "fleet.json").write_text(json.dumps(summary_doc))
+
+
+def test_a_kept_run_is_reused_only_with_the_same_settings_and_a_summary(tmp_path: Path) -> None:
+    settings = bench.run_settings(3, "insertion", 30, 12.663255, 0)
+    keep(tmp_path / "same", dict(settings, commit="abc1234"), {"summary": summary(80.0, 100.0)})
+    kept = bench.kept_run(tmp_path / "same", settings)
+    assert kept is not None and kept["commit"] == "abc1234" and kept["exit"] == 0
+    assert kept["orders_per_hour"] == pytest.approx(80.0)
+    # the gap as fleet_demo was given it (to the millisecond) is the same gap
+    assert bench.kept_run(tmp_path / "same", bench.run_settings(3, "insertion", 30, 12.6631, 0)) is not None
+    for other in (bench.run_settings(3, "insertion", 30, 25.0, 0), bench.run_settings(3, "insertion", 30, 12.663, 1),
+                  bench.run_settings(2, "insertion", 30, 12.663, 0),
+                  bench.run_settings(3, "nearest_idle", 30, 12.663, 0),
+                  bench.run_settings(3, "insertion", 6, 12.663, 0)):
+        assert bench.kept_run(tmp_path / "same", other) is None, other
+    keep(tmp_path / "unfinished", settings, None)                       # died before its summary
+    keep(tmp_path / "unknown", None, {"summary": summary(80.0, 100.0)})  # made before settings were kept
+    (tmp_path / "corrupt").mkdir()
+    (tmp_path / "corrupt" / "settings.json").write_text("{not json")
+    (tmp_path / "corrupt" / "fleet.json").write_text(json.dumps({"summary": summary(80.0, 100.0)}))
+    for name in ("unfinished", "unknown", "corrupt", "missing"):
+        assert bench.kept_run(tmp_path / name, settings) is None, name
+
+
+def test_fleet_sizes_from_the_environment() -> None:
+    assert bench.fleet_sizes("") == (1, 2, 3)
+    assert bench.fleet_sizes("3,1") == (1, 3)
+    assert bench.fleet_sizes(" 2 ") == (2,)
+    for bad in ("one", "0,3", "1.5"):
+        with pytest.raises(ValueError, match="CHEFBOT_STREAM_FLEETS"):
+            bench.fleet_sizes(bad)
