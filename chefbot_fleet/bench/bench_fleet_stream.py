@@ -16,8 +16,8 @@ wall second.  Goals: 3 robots ≥ 2.5× the throughput of one; our mean wait ≤
 0 contacts; 0 orders lost or duplicated.  Six runs of some 15–40 min of sim time each at real time:
 about 2–3 h (quick: two runs, about 10 min).  ``CHEFBOT_STREAM_SEED`` (default 0) picks the stream.
 Each run's logs stay in build/bench_fleet_stream/ROBOTS_POLICY/, with its settings (settings.json:
-robots, policy, orders, gap, seed, commit).  ``CHEFBOT_STREAM_REUSE=1`` takes a kept run whose
-summary is there and whose settings are this run's instead of running it again (an interrupted
+robots, policy, orders, gap, seed, commit).  ``CHEFBOT_STREAM_REUSE=1`` takes a kept run that
+ended every order (none lost) and whose settings are this run's instead of running it again (an interrupted
 bench resumes, or runs split across machines are put together); each reused run is named with its
 commit on the bench's output.  ``CHEFBOT_STREAM_FLEETS`` (default "1,2,3") picks the fleet sizes.
 """
@@ -48,7 +48,8 @@ def run_settings(robots: int, policy: str, orders: int, every: float, seed: int)
 
 def kept_run(run_dir: Path, settings: dict) -> dict | None:
     """The summary of the run kept in ``run_dir`` when it was made with ``settings`` (its
-    settings.json) and finished (its fleet.json), plus ``exit`` 0 and ``commit``; else None."""
+    settings.json) and finished with every order ended (its fleet.json: none lost; a run that gave up
+    is run again), plus ``commit`` and ``exit`` None (not kept); else None."""
     try:
         kept = json.loads((run_dir / "settings.json").read_text())
         summary = json.loads((run_dir / "fleet.json").read_text())["summary"]
@@ -58,7 +59,9 @@ def kept_run(run_dir: Path, settings: dict) -> dict | None:
         return None
     if not isinstance(kept.get("every"), (int, float)) or abs(kept["every"] - settings["every"]) > 5e-4:
         return None                 # another gap (fleet_demo is given it to the millisecond)
-    return dict(summary, exit=0, commit=kept.get("commit"))
+    if not isinstance(summary, dict) or summary.get("lost") != 0:
+        return None
+    return dict(summary, exit=None, commit=kept.get("commit"))
 
 
 def _head() -> str | None:

@@ -63,7 +63,7 @@ def test_a_kept_run_is_reused_only_with_the_same_settings_and_a_summary(tmp_path
     settings = bench.run_settings(3, "insertion", 30, 12.663255, 0)
     keep(tmp_path / "same", dict(settings, commit="abc1234"), {"summary": summary(80.0, 100.0)})
     kept = bench.kept_run(tmp_path / "same", settings)
-    assert kept is not None and kept["commit"] == "abc1234" and kept["exit"] == 0
+    assert kept is not None and kept["commit"] == "abc1234"
     assert kept["orders_per_hour"] == pytest.approx(80.0)
     # the gap as fleet_demo was given it (to the millisecond) is the same gap
     assert bench.kept_run(tmp_path / "same", bench.run_settings(3, "insertion", 30, 12.6631, 0)) is not None
@@ -77,7 +77,8 @@ def test_a_kept_run_is_reused_only_with_the_same_settings_and_a_summary(tmp_path
     (tmp_path / "corrupt").mkdir()
     (tmp_path / "corrupt" / "settings.json").write_text("{not json")
     (tmp_path / "corrupt" / "fleet.json").write_text(json.dumps({"summary": summary(80.0, 100.0)}))
-    for name in ("unfinished", "unknown", "corrupt", "missing"):
+    keep(tmp_path / "gave_up", settings, {"summary": summary(80.0, 100.0, delivered=9, lost=21)})   # run again
+    for name in ("unfinished", "unknown", "corrupt", "missing", "gave_up"):
         assert bench.kept_run(tmp_path / name, settings) is None, name
 
 
