@@ -19,7 +19,9 @@ Each run's logs stay in build/bench_fleet_stream/ROBOTS_POLICY/, with its settin
 robots, policy, orders, gap, seed, commit).  ``CHEFBOT_STREAM_REUSE=1`` takes a kept run that
 ended every order (none lost) and whose settings are this run's instead of running it again (an interrupted
 bench resumes, or runs split across machines are put together); each reused run is named with its
-commit on the bench's output.  ``CHEFBOT_STREAM_FLEETS`` (default "1,2,3") picks the fleet sizes.
+commit on the bench's output; ``CHEFBOT_STREAM_KEPT_ONLY=1`` runs nothing and reports the kept runs
+(those missing are left out of the rows).  ``CHEFBOT_STREAM_FLEETS`` (default "1,2,3") picks the fleet
+sizes.
 """
 from __future__ import annotations
 
@@ -179,7 +181,18 @@ def run(quick: bool = False) -> list[dict]:
     seed = int(os.environ.get("CHEFBOT_STREAM_SEED", "0"))
     fleets = (1, 3) if quick else fleet_sizes(os.environ.get("CHEFBOT_STREAM_FLEETS", ""))
     policies = ("insertion",) if quick else POLICIES
-    results = {(n, p): run_stream(n, p, orders, every, seed) for n in fleets for p in policies}
+    if os.environ.get("CHEFBOT_STREAM_KEPT_ONLY", "") not in ("", "0"):
+        results = {}
+        for n in fleets:
+            for p in policies:
+                kept = kept_run(ROOT / "build" / "bench_fleet_stream" / f"{n}_{p}",
+                                run_settings(n, p, orders, every, seed))
+                print(f"[bench] fleet_stream {n} robot(s), {p}: " +
+                      (f"the kept run of {kept['commit'] or '?'}" if kept else "no kept run: left out"), flush=True)
+                if kept:
+                    results[(n, p)] = kept
+    else:
+        results = {(n, p): run_stream(n, p, orders, every, seed) for n in fleets for p in policies}
     return stream_rows(results, orders, every, seed)
 
 

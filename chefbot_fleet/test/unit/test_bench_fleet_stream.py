@@ -89,3 +89,19 @@ def test_fleet_sizes_from_the_environment() -> None:
     for bad in ("one", "0,3", "1.5"):
         with pytest.raises(ValueError, match="CHEFBOT_STREAM_FLEETS"):
             bench.fleet_sizes(bad)
+
+
+def test_kept_only_reports_the_kept_runs_and_runs_nothing(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr(bench, "ROOT", tmp_path)
+    monkeypatch.setattr(bench, "run_stream", lambda *a: pytest.fail("KEPT_ONLY must not run the stream"))
+    monkeypatch.setenv("CHEFBOT_STREAM_KEPT_ONLY", "1")
+    monkeypatch.setenv("CHEFBOT_STREAM_FLEETS", "1,3")
+    monkeypatch.setenv("CHEFBOT_STREAM_EVERY", "12.663")
+    runs = tmp_path / "build" / "bench_fleet_stream"
+    for robots, policy, per_hour in ((1, "insertion", 30.0), (1, "nearest_idle", 20.0), (3, "insertion", 80.0)):
+        keep(runs / f"{robots}_{policy}", dict(bench.run_settings(robots, policy, 30, 12.663, 0), commit="abc"),
+             {"summary": summary(per_hour, 100.0, orders=30, delivered=30)})
+    rows = bench.run()
+    assert by(rows, "3 robots / 1 robot", "ratio")["ours"] == pytest.approx(80.0 / 30.0)
+    assert by(rows, "3 robots", "wait s, mean")["reference"] is None        # its baseline was not kept
+    assert by(rows, "1 robot", "wait s, mean")["reference"] == pytest.approx(100.0)
